@@ -1,0 +1,1 @@
+"""Sub-commands of the ``realizer`` command line, one module each."""

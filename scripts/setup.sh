@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# One-command set-up: Debian packages, a virtual environment in .venv, and the
+# realizer with everything its tests and renderers need.
+#
+#   bash scripts/setup.sh
+#
+# Safe to run again. Set REALIZER_SKIP_APT=1 to skip the Debian packages
+# (e.g. when you have no root and installed them yourself).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+# Debian packages: OSMesa and EGL for offscreen OpenGL rendering, ffmpeg for
+# video output, Chromium and its driver for the browser viewer's end-to-end test.
+APT_PACKAGES=(
+    libosmesa6 libgl1 libegl1 libgl1-mesa-dri libglu1-mesa
+    ffmpeg
+)
+
+if [ "${REALIZER_SKIP_APT:-0}" != "1" ] && command -v apt-get >/dev/null 2>&1; then
+    missing=()
+    for pkg in "${APT_PACKAGES[@]}"; do
+        dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
+    done
+    if [ ${#missing[@]} -gt 0 ]; then
+        SUDO=""
+        [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+        echo "setup: installing Debian packages: ${missing[*]}"
+        $SUDO apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+    fi
+fi
+
+PYTHON="${PYTHON:-python3}"
+if [ ! -x .venv/bin/python ]; then
+    "$PYTHON" -m venv .venv
+fi
+.venv/bin/python -m pip install -q --upgrade pip
+.venv/bin/python -m pip install -q -e '.[dev,render]'
+# pyrender pins PyOpenGL==3.1.0, which breaks OSMesa; install it without its
+# pins (its real dependencies are in the `render` extra).
+.venv/bin/python -m pip install -q --no-deps 'pyrender==0.1.45'
+echo "setup: done. Try: .venv/bin/realizer --help"
