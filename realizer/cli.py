@@ -16,9 +16,7 @@ from collections.abc import Sequence
 from realizer import __version__
 
 #: Modules of :mod:`realizer.commands`, in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = (
-
-)
+COMMANDS: tuple[str, ...] = ()
 
 
 def build_parser() -> argparse.ArgumentParser:
