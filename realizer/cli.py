@@ -16,7 +16,10 @@ from collections.abc import Sequence
 from realizer import __version__
 
 #: Modules of :mod:`realizer.commands`, in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = ()
+COMMANDS: tuple[str, ...] = (
+    "parse",
+    "bench",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
