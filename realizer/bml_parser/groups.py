@@ -67,7 +67,10 @@ class Ordering:
     required: bool
 
 
-def point_of(ref: SyncRef) -> tuple[Point, float]:
+_TIME = "\x00time"
+
+
+def _point_of(ref: SyncRef) -> tuple[Point, float]:
     """The sync point a reference names and its offset (times hang off bml:start)."""
     if ref.is_time:
         return BLOCK_START, ref.offset
@@ -136,6 +139,18 @@ class _Ties:
 def constraint_groups(block: Block) -> tuple[tuple[ConstraintGroup, ...], tuple[Ordering, ...]]:
     """The equality groups and the orderings a block states, in document order."""
     ties = _Ties()
+    times = 0
+
+    def point_of(ref: SyncRef) -> tuple[Point, float]:
+        # Each bare time (and bml:start) is a point of its own, so that times
+        # do not merge unrelated groups; it maps back to bml:start below.
+        nonlocal times
+        point, offset = _point_of(ref)
+        if point == BLOCK_START:
+            times += 1
+            return (_TIME, "bml", str(times)), offset
+        return point, offset
+
     orderings: list[Ordering] = []
     for behaviour in block.behaviours:
         for sync_name, ref in behaviour.sync_refs:
@@ -148,7 +163,10 @@ def constraint_groups(block: Block) -> tuple[tuple[ConstraintGroup, ...], tuple[
                     ties.tie((None, behaviour.id, run.id), 0.0, target, offset, behaviour.required)
     for constraint in block.constraints:
         for relation in constraint.relations:
-            refs = [point_of(ref) for ref in relation.syncs]
+            if relation.kind != "synchronize":
+                refs = [_point_of(ref) for ref in relation.syncs]
+            else:
+                refs = [point_of(ref) for ref in relation.syncs]
             if relation.kind == "synchronize":
                 if relation.ref is not None:
                     refs.insert(0, point_of(relation.ref))
@@ -156,7 +174,7 @@ def constraint_groups(block: Block) -> tuple[tuple[ConstraintGroup, ...], tuple[
                     ties.tie(a, ka, b, kb, constraint.required)
                 continue
             assert relation.ref is not None
-            anchor_point, anchor_offset = point_of(relation.ref)
+            anchor_point, anchor_offset = _point_of(relation.ref)
             anchor = GroupMember(anchor_point, anchor_offset)
             for point, offset in refs:
                 member = GroupMember(point, offset)
@@ -173,12 +191,17 @@ def constraint_groups(block: Block) -> tuple[tuple[ConstraintGroup, ...], tuple[
         if len(listed) < 2:
             continue
         base = listed[0][1]
+        group_members = tuple(
+            GroupMember(BLOCK_START if point[0] == _TIME else point, offset - base)
+            for point, offset in listed
+        )
+        # time(bml:start) is 0, so every time member pins the common value.
+        pinned = {round(m.offset, 9) for m in group_members if m.point == BLOCK_START}
         groups.append(
             ConstraintGroup(
-                tuple(GroupMember(point, offset - base) for point, offset in listed),
-                consistent=root not in ties.bad,
+                group_members,
+                consistent=root not in ties.bad and len(pinned) <= 1,
                 required=root in ties.required,
             )
         )
-    groups.sort(key=lambda group: min(ties.order[m.point] for m in group.members))
     return tuple(groups), tuple(orderings)
