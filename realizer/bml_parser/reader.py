@@ -617,6 +617,12 @@ class _Reader:
         return Relation(**fields, kind=kind, ref=ref, syncs=tuple(syncs))
 
 
+_DOCTYPE_RE = re.compile(rb"^(?:\xef\xbb\xbf)?(?:\s+|<\?.*?\?>|<!--.*?-->)*<!DOCTYPE", re.S)
+_DOCTYPE_MESSAGE = (
+    "DOCTYPE declarations are not allowed in BML (entity expansion and external DTDs are refused)"
+)
+
+
 def _to_bytes(data: str | bytes) -> tuple[bytes, etree.XMLParser]:
     if isinstance(data, str):
         return data.encode("utf-8"), _TEXT_PARSER
@@ -642,6 +648,9 @@ def parse_bml(
             column=1,
             source=source,
         )
+    if _DOCTYPE_RE.match(raw):
+        # Refuse before libxml2 even reads the internal subset.
+        raise BmlSecurityError(_DOCTYPE_MESSAGE, line=1, column=1, source=source)
     try:
         root = etree.fromstring(raw, parser)
     except etree.XMLSyntaxError as exc:
@@ -652,13 +661,7 @@ def parse_bml(
         raise BmlSyntaxError("empty document", line=1, column=1, source=source)
     docinfo: Any = root.getroottree().docinfo
     if docinfo.doctype or docinfo.internalDTD is not None:
-        raise BmlSecurityError(
-            "DOCTYPE declarations are not allowed in BML (entity expansion and external "
-            "DTDs are refused)",
-            line=1,
-            column=1,
-            source=source,
-        )
+        raise BmlSecurityError(_DOCTYPE_MESSAGE, line=1, column=1, source=source)
     reader = _Reader(raw, source, limits)
     block = reader.block(root)
     return ParseResult(block, tuple(reader.warnings), frozenset(reader.dropped))

@@ -247,7 +247,13 @@ def test_group_offsets_follow_the_document() -> None:
     (group,), _ = constraint_groups(block)
     offsets = {f"{m.point[1]}:{m.point[2]}": m.offset for m in group.members}
     # h1:start = h2:start-2 = h3:start-4 = h4:start-6 = 4 (the header's own words)
-    assert offsets == {"h1:start": 0, "h2:start": -2, "h3:start": -4, "h4:start": -6, "bml:start": 4}
+    assert offsets == {
+        "h1:start": 0,
+        "h2:start": -2,
+        "h3:start": -4,
+        "h4:start": -6,
+        "bml:start": 4,
+    }
     assert group.consistent
 
 
