@@ -50,10 +50,14 @@ from realizer.bml_parser.tree import (
     SpeechText,
     TextSync,
 )
-from realizer.bml_parser.vocabulary import BML_NS, DIALECTS, BehaviourSpec, vocabulary
+from realizer.bml_parser.vocabulary import BML_NS, DIALECTS, DRAFT_NS, BehaviourSpec, vocabulary
 
 COMPOSITIONS = ("MERGE", "APPEND", "REPLACE")
 _RELATION_KINDS = ("synchronize", "before", "after")
+_CHECKED_TYPES = frozenset({"fap", "emotion", "head"})
+# Clark-name prefixes ("{ns" before the "}") of the namespaces whose
+# <description> and <text> children the grammar reads.
+_CORE_PREFIXES = frozenset({"{" + BML_NS, "{" + DRAFT_NS, ""})
 _FAP_VALUE_RE = re.compile(r"\s*([0-9]+)\s*[=:]\s*([+-]?[0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*")
 
 
@@ -178,7 +182,10 @@ class _Reader:
     # -- the XML layer -----------------------------------------------------
 
     def common(
-        self, el: Any, parent_nsmap: dict[str | None, str]
+        self,
+        el: Any,
+        parent_nsmap: dict[str | None, str],
+        attributes: tuple[tuple[str, str], ...] | None = None,
     ) -> tuple[dict[str, Any], dict[str | None, str]]:
         """The lossless fields every element keeps (children filled by the caller),
         and the namespaces in scope inside it."""
@@ -192,7 +199,7 @@ class _Reader:
             )
         return {
             "tag": el.tag,
-            "attributes": tuple(el.attrib.items()),
+            "attributes": tuple(el.attrib.items()) if attributes is None else attributes,
             "text": el.text or "",
             "tail": el.tail or "",
             "prefix": el.prefix,
@@ -346,17 +353,24 @@ class _Reader:
                 el,
             )
 
-        draft = spec.dialect == "draft"
-        aliases = tuple(self.vocab.draft_sync_names.items()) if draft else ()
-        alias_map = dict(aliases)
-        sync_set = set(spec.syncs)
+        aliases = spec.sync_aliases
+        sync_attributes = spec.sync_attributes
+        understood = spec.attributes
         params: list[tuple[str, str]] = []
         sync_refs: list[tuple[str, SyncRef]] = []
         problem = ""
-        for name, value in el.attrib.items():
-            if name == "id":
+        attributes = tuple(el.attrib.items())
+        for name, value in attributes:
+            sync_name = sync_attributes.get(name)
+            if sync_name is not None:
+                sync_refs.append((sync_name, self.sync_ref(value, el, name, aliases)))
+            elif name in understood:
+                if name in spec.numeric and not _is_number(value):
+                    problem = f"attribute {name}={value!r} of {behaviour_id!r} is not a number"
+                params.append((name, value))
+            elif name == "id":
                 continue
-            if name[0] == "{":
+            elif name[0] == "{":
                 self.warn(
                     WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
                     f"custom attribute {name} on {behaviour_id!r} is not supported; it is ignored",
@@ -364,14 +378,6 @@ class _Reader:
                     behaviour_id,
                     needle=name.rpartition("}")[2],
                 )
-                continue
-            sync_name = alias_map.get(name, name)
-            if sync_name in sync_set:
-                sync_refs.append((sync_name, self.sync_ref(value, el, name, aliases)))
-            elif name in spec.attributes:
-                if name in spec.numeric and not _is_number(value):
-                    problem = f"attribute {name}={value!r} of {behaviour_id!r} is not a number"
-                params.append((name, value))
             else:
                 self.warn(
                     WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
@@ -381,24 +387,25 @@ class _Reader:
                     behaviour_id,
                     needle=f"{name}=",
                 )
-        missing = [name for name in spec.required if el.get(name) is None]
-        if missing:
-            problem = f"<{local}> {behaviour_id!r} lacks the attribute {missing[0]!r}"
-        behaviour_type, params = self.translate(spec, params)
-        if not problem:
+        if spec.required:
+            present = {name for name, _ in params}
+            missing = [name for name in spec.required if name not in present]
+            if missing:
+                problem = f"<{local}> {behaviour_id!r} lacks the attribute {missing[0]!r}"
+        behaviour_type = spec.type
+        if spec.dialect == "draft":
+            behaviour_type, params = self.translate(spec, params)
+        if not problem and behaviour_type in _CHECKED_TYPES:
             problem = self.check_params(behaviour_type, params, behaviour_id)
 
-        fields, inner = self.common(el, nsmap)
+        fields, inner = self.common(el, nsmap, attributes)
         children: list[Node] = []
         descriptions: list[Description] = []
         speech: SpeechText | None = None
         for child in el:
-            if isinstance(child.tag, str) and etree.QName(child).namespace in (
-                self.vocab.namespaces["bml"],
-                self.vocab.namespaces["draft"],
-                None,
-            ):
-                local_child = etree.QName(child).localname
+            tag = child.tag
+            if isinstance(tag, str) and tag.rpartition("}")[0] in _CORE_PREFIXES:
+                local_child = tag.rpartition("}")[2]
                 if local_child == "description":
                     description = self.description(child, inner)
                     descriptions.append(description)
@@ -417,8 +424,11 @@ class _Reader:
             )
             return XmlElement(**fields)
 
-        syncs = self.sync_points(spec, params, speech)
-        self.check_absolute_order(syncs, sync_refs, el, behaviour_id)
+        syncs = spec.syncs
+        if speech is not None or (behaviour_type == "head" and params):
+            syncs = self.sync_points(spec, params, speech)
+        if len(sync_refs) > 1:
+            self.check_absolute_order(syncs, sync_refs, el, behaviour_id)
         return Behaviour(
             **fields,
             id=behaviour_id,
