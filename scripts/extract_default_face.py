@@ -55,6 +55,7 @@ import sys
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -83,6 +84,8 @@ EYE_SEGMENTS = 32
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_OUT = REPO / "realizer" / "face" / "data" / "default_face"
+# The face model's classes and file format come from this checkout's realizer.
+sys.path.insert(0, str(REPO))
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -284,21 +287,6 @@ def npz_bytes(arrays: dict[str, npt.NDArray[np.generic]]) -> bytes:
             info.compress_type = zipfile.ZIP_DEFLATED
             archive.writestr(info, member.getvalue(), compresslevel=9)
     return buffer.getvalue()
-
-
-def mesh_npz_bytes(head: HeadMesh) -> bytes:
-    return npz_bytes(
-        {
-            "vertices": (head.vertices * METRES_PER_UNIT).astype(np.float32),
-            "faces": head.faces.astype(np.int32),
-            "source_index": head.source_index.astype(np.int32),
-            "part_names": np.array(list(head.parts)),
-            "part_ranges": np.array(list(head.parts.values()), dtype=np.int32),
-            "sub_part_names": np.array(list(head.sub_parts)),
-            "sub_part_ranges": np.array(list(head.sub_parts.values()), dtype=np.int32),
-        }
-    )
-
 
 
 # --------------------------------------------------------------------------
@@ -608,6 +596,222 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     return fp
 
 
+
+# --------------------------------------------------------------------------
+# Deformation settings of FAPs 3..68 (seed 000 section 4.3.5), in metres.
+# --------------------------------------------------------------------------
+
+#: Parts of the face model (realizer.face.model.Face.parts) -> sub-parts here.
+MODEL_PARTS = {
+    "skin": "skin",
+    "left_eye": "eye_l",
+    "right_eye": "eye_r",
+    "upper_teeth": "teeth_upper",
+    "lower_teeth": "teeth_lower",
+    "tongue": "tongue",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Rig:
+    """Everything the face model needs beyond the mesh, in metres."""
+
+    feature_points: dict[str, tuple[float, float, float]]
+    parts: dict[str, IntArray]
+    masks: dict[int, IntArray]
+    deformers: list[Any]
+
+
+def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig:
+    """Feature points, parts, vertex masks and one or more deformers for
+    every FAP 3..68, in the classes of :mod:`realizer.face.model`.
+
+    Sizes follow seed 000 section 4.3.5: an influence sphere just reaches
+    the neighbouring feature point; lips are masked so that the upper lip's
+    FAPs leave the lower lip alone and vice versa; the jaw's sphere is wide
+    and flat. Directions are the standard's axis (Table 7) plus, where a real
+    face does so, a component the standard leaves free (lip corners go back
+    as they stretch, seed 002 section 2.1.3.1's example of FAP 54).
+    """
+    from realizer.face.model import (
+        DilateDeformer,
+        EaseDeformer,
+        RollDeformer,
+        TransformDeformer,
+    )
+
+    v_dm = head.vertices
+    v = v_dm * METRES_PER_UNIT
+    fp_index = place_feature_points(head, targets, len(base.vertices))
+    fp = {name: v[i] for name, i in fp_index.items()}
+    # Top of the spine: hm08's head joint (inside the head, on the midline).
+    head_joint = base.vertices[base.group_vertices("joint-head")].mean(axis=0) * METRES_PER_UNIT
+    fp["7.1"] = np.array([0.0, head_joint[1], head_joint[2]])
+    skin = head.part("skin")
+
+    parts = {name: head.part(sub) for name, sub in MODEL_PARTS.items()}
+    for side, model in (("l", "left"), ("r", "right")):
+        ball = head.part(f"eye_{side}")
+        centre = v[ball].mean(axis=0)
+        offsets = v[ball] - centre
+        angle = np.arccos(np.clip(offsets[:, 2] / np.linalg.norm(offsets, axis=1), -1, 1))
+        # The pupil: the front pole and the first ring of the UV sphere.
+        parts[f"{model}_pupil"] = ball[angle < np.pi / EYE_RINGS * 1.5]
+
+    def dist(a: str, b: str) -> float:
+        return float(np.linalg.norm(fp[a] - fp[b]))
+
+    # Lower face: what the CC0 ARKit target jawOpen moves (chin, lower lip,
+    # the floor of the mouth); the upper lip and everything above stay.
+    to_head = np.full(len(base.vertices), -1, dtype=np.int64)
+    to_head[head.source_index[head.source_index >= 0]] = np.flatnonzero(head.source_index >= 0)
+    jaw_target = targets["jawOpen"]
+    idx = to_head[jaw_target.indices]
+    ok = (idx >= 0) & (idx < len(skin))
+    jaw_moves = np.zeros(len(v))
+    jaw_moves[idx[ok]] = np.linalg.norm(jaw_target.offsets[ok], axis=1)
+    lower_face = skin[jaw_moves[skin] > 0.1 * jaw_moves.max()]
+    upper_face = np.setdiff1d(skin, lower_face)
+    # The lips' meeting line splits the mouth: the upper lip lies above it.
+    mouth_line = (fp["2.2"][1] + fp["2.3"][1]) / 2
+    lower_lip = lower_face[v[lower_face, 1] < mouth_line + 0.001]
+    upper_lip = upper_face[v[upper_face, 1] > mouth_line - 0.001]
+    masks: dict[int, IntArray] = {}
+    deformers: list[Any] = []
+
+    def ease(fap: int, direction: tuple[float, float, float], size: float,
+             scale: tuple[float, float, float] = (1.0, 1.0, 1.0), ease_: float = 0.0,
+             mask: IntArray | None = None, part: str = "skin", point: str | None = None) -> None:
+        if mask is not None:
+            masks[fap] = mask
+        deformers.append(EaseDeformer(
+            fap=fap, direction=direction, size=round(size, 5), scale=scale,
+            use_vertex_mask=mask is not None, part=part, ease=ease_, feature_point=point,
+        ))
+
+    mw0 = dist("8.3", "8.4")
+    mns0 = float(fp["9.15"][1] - fp["2.2"][1])
+    down, up, fwd = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+    left, right = (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)
+
+    # Jaw (3, 14, 15): the lower face moves with the chin, fading towards
+    # the jaw's corners; the lower teeth and the tongue turn or slide rigidly
+    # with it about the jaw joint, in front of the ear.
+    jaw_reach = dist("2.1", "2.13") * 1.1
+    pivot = np.array([0.0, (fp["10.7"][1] + fp["10.9"][1]) / 2 - 0.01, fp["10.7"][2] + 0.01])
+    radius = float(np.linalg.norm(fp["2.1"] - pivot))
+    ease(3, (0.0, -1.0, -0.25), jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
+    deformers.append(TransformDeformer(
+        fap=3, parts=("lower_teeth", "tongue"), kind="rotation", axis=(1.0, 0.0, 0.0),
+        scale=round(1.0 / radius, 4), pivot=tuple(round(float(c), 5) for c in pivot)))
+    ease(14, fwd, jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
+    deformers.append(TransformDeformer(
+        fap=14, parts=("lower_teeth", "tongue"), kind="translation", axis=fwd))
+    ease(15, right, jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
+    deformers.append(TransformDeformer(
+        fap=15, parts=("lower_teeth", "tongue"), kind="translation", axis=right))
+
+    # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): each
+    # midpoint's sphere reaches its neighbours; corners reach a third of the
+    # mouth's width and move both lips.
+    lip_size = 0.55 * mw0
+    lip_scale = (1.0, 0.6, 1.0)
+    for fap, point, direction, mask in (
+        (4, "2.2", down, upper_lip), (8, "2.6", down, upper_lip), (9, "2.7", down, upper_lip),
+        (5, "2.3", up, lower_lip), (10, "2.8", up, lower_lip), (11, "2.9", up, lower_lip),
+        (51, "8.1", down, upper_lip), (55, "8.5", down, upper_lip), (56, "8.6", down, upper_lip),
+        (52, "8.2", up, lower_lip), (57, "8.7", up, lower_lip), (58, "8.8", up, lower_lip),
+    ):
+        ease(fap, direction, lip_size, lip_scale, 0, mask)
+    ease(16, fwd, lip_size, lip_scale, 0, lower_lip)
+    ease(17, fwd, lip_size, lip_scale, 0, upper_lip)
+    corner_size = 0.4 * mw0
+    for fap, direction in ((6, (1.0, 0.0, -0.3)), (7, (-1.0, 0.0, -0.3)),
+                           (53, (1.0, 0.0, -0.3)), (54, (-1.0, 0.0, -0.3)),
+                           (12, up), (13, up), (59, up), (60, up)):
+        ease(fap, direction, corner_size, (1.0, 1.0, 1.0), -20)
+    # Chin raiser: the chin below the lower lip, up.
+    ease(18, up, 0.8 * mns0 * 1.6, (1.3, 0.8, 1.0), 0, lower_face)
+
+    # Eyelids: a sphere from the lid's middle to just past the eye corners,
+    # eased so that the lid between middle and corners follows; masks keep
+    # the upper lid's FAP off the lower lid and vice versa.
+    for side, fap_top, fap_bottom, top, bottom, outer, inner in (
+        ("l", 19, 21, "3.1", "3.3", "3.7", "3.11"), ("r", 20, 22, "3.2", "3.4", "3.12", "3.8"),
+    ):
+        width = dist(outer, inner)
+        ball_centre = v[head.part(f"eye_{side}")].mean(axis=0)
+        around = skin[np.linalg.norm(v[skin] - ball_centre, axis=1) < 0.8 * width]
+        mid_y = (fp[top][1] + fp[bottom][1]) / 2
+        ease(fap_top, down, 0.6 * width, (1.0, 1.3, 1.0), -50,
+             around[v[around, 1] > mid_y])
+        ease(fap_bottom, up, 0.6 * width, (1.0, 1.0, 1.0), -50,
+             around[v[around, 1] < mid_y])
+
+    # Eyeballs: they turn about their centres (yaw 23, 24; pitch 25, 26),
+    # slide forward (27, 28), and their pupils dilate (29, 30).
+    for side, yaw, pitch, thrust, dilate in (("left", 23, 25, 27, 29), ("right", 24, 26, 28, 30)):
+        centre = tuple(round(float(c), 5) for c in v[parts[f"{side}_eye"]].mean(axis=0))
+        deformers.append(DilateDeformer(fap=dilate, part=f"{side}_pupil", axis=fwd, pivot=centre))
+        deformers.append(TransformDeformer(
+            fap=thrust, parts=(f"{side}_eye",), kind="translation", axis=fwd))
+        deformers.append(TransformDeformer(
+            fap=yaw, parts=(f"{side}_eye",), kind="rotation", axis=(0.0, 1.0, 0.0), pivot=centre))
+        deformers.append(TransformDeformer(
+            fap=pitch, parts=(f"{side}_eye",), kind="rotation", axis=(1.0, 0.0, 0.0),
+            pivot=centre))
+
+    # Eyebrows: inner, middle and outer points, each reaching its neighbour.
+    for fap, point, neighbour in ((31, "4.1", "4.3"), (32, "4.2", "4.4"), (33, "4.3", "4.1"),
+                                  (34, "4.4", "4.2"), (35, "4.5", "4.3"), (36, "4.6", "4.4")):
+        ease(fap, up, 1.2 * dist(point, neighbour), (1.0, 0.8, 1.0), -20)
+    ease(37, right, 1.2 * dist("4.1", "4.3"), (1.0, 0.8, 1.0), -20)
+    ease(38, left, 1.2 * dist("4.2", "4.4"), (1.0, 0.8, 1.0), -20)
+
+    # Cheeks: puff sideways (and a little forward), lift up.
+    cheek = 0.5 * mw0
+    ease(39, (1.0, 0.0, 0.4), cheek, (1.0, 1.2, 1.0), -20)
+    ease(40, (-1.0, 0.0, 0.4), cheek, (1.0, 1.2, 1.0), -20)
+    ease(41, up, cheek, (1.0, 0.8, 1.0), -20, upper_face)
+    ease(42, up, cheek, (1.0, 0.8, 1.0), -20, upper_face)
+
+    # Tongue: the tip (43..45) bends the front half; 46 lifts the body;
+    # 47 rolls both borders up about the tongue's length.
+    tongue = parts["tongue"]
+    length = float(np.ptp(v[tongue, 2]))
+    ease(43, right, 0.7 * length, part="tongue")
+    ease(44, up, 0.7 * length, part="tongue")
+    ease(45, fwd, 0.7 * length, part="tongue")
+    ease(46, up, 0.8 * length, part="tongue")
+    deformers.append(RollDeformer(fap=47, part="tongue", axis=fwd, pivot_fp="6.2"))
+
+    # Head: pitch, yaw and roll about the top of the spine (7.1); the neck
+    # below it bends over 6 cm instead of turning as a block.
+    for fap, axis in ((48, (1.0, 0.0, 0.0)), (49, (0.0, 1.0, 0.0)), (50, (0.0, 0.0, 1.0))):
+        deformers.append(TransformDeformer(
+            fap=fap, parts=("all",), kind="rotation", axis=axis, pivot_fp="7.1", falloff=0.06))
+
+    # Nose: wings out, tip up and sideways.
+    nose = dist("9.1", "9.2")
+    ease(61, left, 0.5 * nose, (1.0, 1.0, 1.0), -20)
+    ease(62, right, 0.5 * nose, (1.0, 1.0, 1.0), -20)
+    ease(63, up, 0.8 * nose, (1.0, 1.0, 1.0), -20)
+    ease(64, right, 0.8 * nose, (1.0, 1.0, 1.0), -20)
+
+    # Ears: each moves whole (the skin lateral of the skull where it is).
+    for fap, point, direction, sign in ((65, "10.1", up, 1.0), (66, "10.2", up, -1.0),
+                                        (67, "10.3", left, 1.0), (68, "10.4", right, -1.0)):
+        ear_h = float(fp["10.1"][1] - fp["10.5"][1])
+        ear = skin[(sign * v[skin, 0] > 0.062) & (v[skin, 2] < 0.08) & (v[skin, 1] < 0.76)]
+        ease(fap, direction, ear_h, (1.0, 1.0, 1.0), -60, ear)
+
+    feature_points = {
+        name: (round(float(p[0]), 6), round(float(p[1]), 6), round(float(p[2]), 6))
+        for name, p in fp.items()
+    }
+    return Rig(feature_points, parts, masks, deformers)
+
+
 ORIGIN = f"""\
 # Origin of the default face
 
@@ -633,14 +837,70 @@ The derived files here are released under the same CC0 1.0 terms.
 """
 
 
+def vertex_rgb(head: HeadMesh, rig: Rig) -> npt.NDArray[np.uint8]:
+    """Per-vertex colours (n, 3) uint8 for the renderer: the renderer's part
+    colours, with the lips (inside the outer lip contour) tinted."""
+    from realizer.face import render
+
+    v = head.vertices * METRES_PER_UNIT
+    colour_parts = {
+        "eyes": np.concatenate([rig.parts["left_eye"], rig.parts["right_eye"]]),
+        "teeth": np.concatenate([rig.parts["upper_teeth"], rig.parts["lower_teeth"]]),
+        "tongue": rig.parts["tongue"],
+        "skin": rig.parts["skin"],
+    }
+    fp = {k: np.asarray(p) for k, p in rig.feature_points.items()}
+    skin = rig.parts["skin"]
+    # Inside the lips' outline: between the outer corners, and between the
+    # outline's height there (an ellipse through 8.1/8.2 and 8.3/8.4), in front.
+    half_width = (fp["8.3"][0] - fp["8.4"][0]) / 2
+    centre_y = (fp["2.2"][1] + fp["2.3"][1]) / 2
+    u = v[skin, 0] / half_width
+    height = np.where(v[skin, 1] > centre_y, fp["8.1"][1] - centre_y, centre_y - fp["8.2"][1])
+    w = (v[skin, 1] - centre_y) / height
+    lips = skin[(u**2 + w**2 < 1.0) & (v[skin, 2] > fp["8.3"][2] - 0.006)]
+
+    class _Parts:
+        vertices = v
+        parts = colour_parts
+
+    rgb = render.vertex_colours(_Parts(), lip_vertices=lips)
+    out: npt.NDArray[np.uint8] = np.round(rgb * 255).astype(np.uint8)
+    return out
+
+
 def build_files(wheel: Wheel) -> dict[str, bytes]:
+    from realizer.face.model import Face, FaceParameters
+    from realizer.face.paramfile import serialise_parameters
+
     head = extract_head(wheel.base)
-    files = {
-        "mesh.npz": mesh_npz_bytes(head),
+    rig = build_rig(head, wheel.targets, wheel.base)
+    params = FaceParameters(
+        feature_points=rig.feature_points,
+        keep_syncs=(),
+        deformers=tuple(rig.deformers),
+        vertex_masks={fap: tuple(int(i) for i in np.sort(m)) for fap, m in sorted(rig.masks.items())},
+    )
+    vertices = (head.vertices * METRES_PER_UNIT).astype(np.float32)
+    colours = vertex_rgb(head, rig)
+    arrays: dict[str, npt.NDArray[np.generic]] = {
+        "vertices": vertices,
+        "faces": head.faces.astype(np.int32),
+        "name": np.array("default"),
+    }
+    for name, indices in rig.parts.items():
+        arrays[f"part:{name}"] = np.sort(indices).astype(np.int32)
+    arrays["attr:colours"] = colours
+    arrays["attr:source_index"] = head.source_index.astype(np.int32)
+    # Building the Face checks the result (indices in range, feature points).
+    Face(vertices, arrays["faces"], {k[5:]: a for k, a in arrays.items() if k.startswith("part:")},
+         params, "default")
+    return {
+        "default_face.npz": npz_bytes(arrays),
+        "default_face.xml": serialise_parameters(params),
         "LICENSE.md": wheel.license_text.encode("utf-8"),
         "ORIGIN.md": ORIGIN.encode("utf-8"),
     }
-    return files
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,7 +16,7 @@ import pytest
 from realizer.face import render
 from realizer.face.render import FaceRenderer, Framing, RenderUnavailableError
 
-DATA = Path(render.__file__).parent / "data" / "default_face" / "mesh.npz"
+DATA = Path(render.__file__).parent / "data" / "default_face" / "default_face.npz"
 
 
 @dataclass(frozen=True)
@@ -31,10 +31,7 @@ class MeshFace:
 @pytest.fixture(scope="module")
 def mesh_face() -> MeshFace:
     data = np.load(DATA)
-    parts = {
-        str(n): tuple(int(i) for i in r)
-        for n, r in zip(data["part_names"], data["part_ranges"], strict=True)
-    }
+    parts = {key[5:]: data[key] for key in data.files if key.startswith("part:")}
     return MeshFace(data["vertices"], data["faces"], parts)
 
 
