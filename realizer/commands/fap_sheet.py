@@ -51,8 +51,14 @@ def load_sheet_entries() -> list[SheetEntry]:
         view = row["view"]
         if view not in ("front", "left", "right"):
             raise ValueError(f"fap_sheet.csv: FAP {row['fap']}: unknown view {view!r}")
-        entries.append(SheetEntry(int(row["fap"]), float(row["value"]), view,  # type: ignore[arg-type]
-                                  float(row["jaw_open"])))
+        entries.append(
+            SheetEntry(
+                int(row["fap"]),
+                float(row["value"]),
+                view,  # type: ignore[arg-type]
+                float(row["jaw_open"]),
+            )
+        )
     return entries
 
 
@@ -80,7 +86,8 @@ def face_framing(face: Face) -> Any:
     from realizer.face.render import Framing
 
     points = [
-        p for name, p in face.params.feature_points.items()
+        p
+        for name, p in face.params.feature_points.items()
         if name.split(".")[0] in {"2", "3", "4", "5", "8", "9"}
     ]
     if len(points) < 4:
@@ -106,9 +113,12 @@ def build_sheet(face: Face, tile: int = 128) -> npt.NDArray[np.uint8]:
     header = 28
     sheet = Image.new("RGB", (columns * row_width, header + rows_per_column * tile), (24, 24, 24))
     draw = ImageDraw.Draw(sheet)
-    draw.text((6, 6), f"FAP contact sheet of face '{face.name}': neutral | +value | "
-              "difference over blurred neutral (seed 000 fig. 4.20) | -value | difference",
-              fill=(230, 230, 230))
+    draw.text(
+        (6, 6),
+        f"FAP contact sheet of face '{face.name}': neutral | +value | "
+        "difference over blurred neutral (seed 000 fig. 4.20) | -value | difference",
+        fill=(230, 230, 230),
+    )
     neutrals: dict[tuple[str, float], npt.NDArray[np.uint8]] = {}
     with FaceRenderer(face, tile, tile, framing=face_framing(face)) as renderer:
 
@@ -137,8 +147,11 @@ def build_sheet(face: Face, tile: int = 128) -> npt.NDArray[np.uint8]:
             for t, image in enumerate(tiles):
                 sheet.paste(Image.fromarray(image), (x0 + label_width + t * tile, y0))
             sign_text = "+" if info.unidirectional else "+/-"
-            lines = [f"{entry.fap} {info.name}", f"{sign_text}{entry.value:g} {info.unit}",
-                     f"{info.direction}" + (f", {entry.view} view" if entry.view != "front" else "")]
+            lines = [
+                f"{entry.fap} {info.name}",
+                f"{sign_text}{entry.value:g} {info.unit}",
+                f"{info.direction}" + (f", {entry.view} view" if entry.view != "front" else ""),
+            ]
             if entry.jaw_open:
                 lines.append(f"jaw open {entry.jaw_open:g}")
             for i, line in enumerate(lines):
@@ -174,7 +187,9 @@ def register(subparsers: Any) -> None:
         description=__doc__.split("\n\n")[0] if __doc__ else None,
     )
     parser.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
-    parser.add_argument("--face", help="a face file (STEM, STEM.npz or STEM.xml); "
-                        "default: the built-in default face")
+    parser.add_argument(
+        "--face",
+        help="a face file (STEM, STEM.npz or STEM.xml); default: the built-in default face",
+    )
     parser.add_argument("--tile", type=int, default=128, help="tile size in pixels (128)")
     parser.set_defaults(run=run)

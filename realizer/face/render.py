@@ -278,7 +278,9 @@ class FaceRenderer:
                 f"(PYOPENGL_PLATFORM={os.environ.get('PYOPENGL_PLATFORM')}): {error}"
             ) from error
         self._material = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=(1.0, 1.0, 1.0, 1.0), metallicFactor=0.0, roughnessFactor=0.65,
+            baseColorFactor=(1.0, 1.0, 1.0, 1.0),
+            metallicFactor=0.0,
+            roughnessFactor=0.65,
             doubleSided=True,
         )
         self._scene = pyrender.Scene(
@@ -313,8 +315,10 @@ class FaceRenderer:
         forward = {"front": (0.0, 0.0, 1.0), "left": (1.0, 0.0, 0.0), "right": (-1.0, 0.0, 0.0)}
         direction = np.array(forward[view])
         camera = pyrender.PerspectiveCamera(
-            yfov=float(FIELD_OF_VIEW), aspectRatio=self.width / self.height,
-            znear=distance / 10, zfar=distance * 10,
+            yfov=float(FIELD_OF_VIEW),
+            aspectRatio=self.width / self.height,
+            znear=distance / 10,
+            zfar=distance * 10,
         )
         eye = target + distance * direction
         self._camera_node = self._scene.add(camera, pose=_look_at(eye, target))
