@@ -59,7 +59,8 @@ def test_directions_follow_the_lexeme_names() -> None:
     assert lexeme_faps("LOWER_BROWS", 1.0).as_dict()[31] < 0
     assert lexeme_faps("RAISE_MOUTH_CORNERS", 1.0).as_dict()[59] > 0
     assert lexeme_faps("LOWER_MOUTH_CORNERS", 1.0).as_dict()[59] < 0
-    assert lexeme_faps("WIDEN_EYES", 1.0).as_dict()[19] < 0 < lexeme_faps("CLOSE_EYES").as_dict()[19]
+    assert lexeme_faps("WIDEN_EYES", 1.0).as_dict()[19] < 0
+    assert lexeme_faps("CLOSE_EYES", 1.0).as_dict()[19] > 0
     assert lexeme_faps("OPEN_MOUTH", 1.0).as_dict()[3] > 0
 
 
