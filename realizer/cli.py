@@ -17,7 +17,8 @@ from realizer import __version__
 
 #: Modules of :mod:`realizer.commands`, in the order ``--help`` lists them.
 COMMANDS: tuple[str, ...] = (
-
+    "parse",
+    "bench",
 )
 
 
