@@ -130,6 +130,14 @@ class Envelope:
         relax = times.get("relax", end)
         return cls(start, attack_peak, relax, end, curve)
 
+    def level_at(self, now: float) -> float:
+        """The envelope at one time ``now`` (seconds); the scalar path of :meth:`level`."""
+        if not self.start <= now <= self.end:
+            return 0.0
+        if self.attack_peak <= now <= self.relax and self.curve != "triangular":
+            return 1.0
+        return float(self.level(now))
+
     def level(self, t: npt.ArrayLike) -> FloatArray:
         """The envelope at times ``t`` (seconds; scalar or array)."""
         x = np.asarray(t, dtype=np.float64)
@@ -187,8 +195,7 @@ class FapAnimation:
         return tuple(int(i) + 1 for i in np.flatnonzero(self.target.mask))
 
     def evaluate(self, now: float) -> tuple[FloatArray, FloatArray]:
-        level = float(self.envelope.level(now))
-        weights = np.where(self.target.mask, level, 0.0)
+        weights = np.where(self.target.mask, self.envelope.level_at(now), 0.0)
         return self.target.values.copy(), weights
 
 
