@@ -472,17 +472,20 @@ class FaceEngine:
 
 
 def default_limits() -> FapLimits:
-    """Each FAP's range from the FAP table of :mod:`realizer.face.faps` when it
-    is available; unbounded otherwise."""
+    """Each FAP's range from the FAP table of :mod:`realizer.face.faps` (seed 002
+    Table 7): the I-frame quantised minimum and maximum times the quantisation
+    step, i.e. the largest values an MPEG-4 FAP stream can carry (a
+    unidirectional FAP such as open_jaw cannot go below 0). Unbounded if the
+    table is not available."""
     try:
         fap_table = importlib.import_module("realizer.face.faps")
     except ImportError:
         return FapLimits.unbounded()
     lower = np.full(FAP_COUNT, -np.inf)
     upper = np.full(FAP_COUNT, np.inf)
-    ranges = getattr(fap_table, "fap_ranges", None)
-    if callable(ranges):
-        low, high = ranges()
-        lower[:] = low
-        upper[:] = high
+    for number, info in fap_table.load_fap_table().items():
+        if number <= 2:
+            continue  # FAP 1 and 2 are expanded into the others, never mixed
+        lower[number - 1] = float(info.iframe_min) * float(info.quant_step)
+        upper[number - 1] = float(info.iframe_max) * float(info.quant_step)
     return FapLimits(lower, upper)
