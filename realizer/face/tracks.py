@@ -252,6 +252,46 @@ class KeyframeAnimation:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
+class InterruptedAnimation:
+    """An animation stopped at ``at`` (seconds): it holds its values from that
+    moment and fades its weights to 0 over ``release`` seconds with ``curve``.
+
+    What the session uses when a block is interrupted or REPLACEd, so the face
+    eases back instead of jumping (BML 1.0 leaves the manner to the realizer).
+    """
+
+    base: Animation
+    at: float
+    release: float = 0.2
+    curve: CurveKind = "hermite"
+
+    @property
+    def start(self) -> float:
+        return self.base.start
+
+    @property
+    def end(self) -> float:
+        return min(self.base.end, self.at + self.release)
+
+    @property
+    def priority(self) -> int:
+        return self.base.priority
+
+    @property
+    def blend(self) -> str:
+        return str(getattr(self.base, "blend", "add"))
+
+    def evaluate(self, now: float) -> tuple[FloatArray, FloatArray]:
+        if now <= self.at:
+            return self.base.evaluate(now)
+        values, weights = self.base.evaluate(self.at)
+        if self.release <= TIME_EPSILON_S:
+            return values, np.zeros_like(weights)
+        fade = 1.0 - float(ease(self.curve, (now - self.at) / self.release))
+        return values, weights * fade
+
+
+@dataclass(frozen=True, slots=True, eq=False)
 class FapLimits:
     """Each FAP's range ``[lower, upper]`` (68,) in FAPU-scaled units, for clamping."""
 

@@ -16,6 +16,7 @@ from realizer.face.tracks import (
     Envelope,
     FapAnimation,
     FapLimits,
+    InterruptedAnimation,
     KeyframeAnimation,
     bookmark_curve,
     ease,
@@ -148,3 +149,22 @@ def test_sampling_mixes_at_every_time() -> None:
     values, mask = sample([animation], [0.0, 0.5, 1.0, 1.5, 3.0])
     assert values[:, 2] == pytest.approx([0, 50, 100, 50, 0])
     assert mask[:, 2].tolist() == [False, True, True, True, False]
+
+
+def test_an_interrupted_animation_holds_and_fades_out_instead_of_jumping() -> None:
+    base = FapAnimation(FapConfiguration.from_mapping({3: 400}), Envelope(0, 1, 5, 6))
+    stopped = InterruptedAnimation(base, at=0.5, release=0.5, curve="linear")
+    assert stopped.end == 1.0 and stopped.priority == base.priority
+    assert mix([stopped], 0.25)[0][2] == pytest.approx(100)  # as before the interrupt
+    assert mix([stopped], 0.5)[0][2] == pytest.approx(200)
+    assert mix([stopped], 0.75)[0][2] == pytest.approx(100)  # half faded from 200
+    assert not mix([stopped], 1.5)[1].any()
+
+
+def test_an_interrupted_replace_layer_stays_a_replace_layer() -> None:
+    below = FapAnimation(FapConfiguration.from_mapping({3: 100}), Envelope(0, 0, 9, 9))
+    top = FapAnimation(
+        FapConfiguration.from_mapping({3: 500}), Envelope(0, 0, 9, 9), priority=1, blend="replace"
+    )
+    stopped = InterruptedAnimation(top, at=1.0, release=1.0, curve="linear")
+    assert mix([below, stopped], 1.5)[0][2] == pytest.approx(300)
