@@ -42,8 +42,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     unknown = [area for area in args.areas if area not in found]
     if unknown:
-        print(f"unknown benchmark(s): {', '.join(unknown)}; have: {', '.join(found)}",
-              file=sys.stderr)
+        print(
+            f"unknown benchmark(s): {', '.join(unknown)}; have: {', '.join(found)}", file=sys.stderr
+        )
         return 2
     for area in args.areas or list(found):
         spec = importlib.util.spec_from_file_location(f"bench_{area}", found[area])

@@ -7,11 +7,11 @@ import pytest
 from realizer.bml_parser import (
     BML_NS,
     REALIZER_NS,
-    SyncRefError,
     Behaviour,
     BmlSyntaxError,
     Comment,
     ProcessingInstruction,
+    SyncRefError,
     WarningType,
     XmlElement,
     canonical,
@@ -181,9 +181,7 @@ def test_unknown_element_in_bml_namespace_is_warned_about() -> None:
 
 
 def test_custom_attributes_are_warned_about_and_kept() -> None:
-    text = bml(
-        '<head id="n" lexeme="NOD" x:speed="2" strat="1"/>', extra_ns='xmlns:x="urn:other"'
-    )
+    text = bml('<head id="n" lexeme="NOD" x:speed="2" strat="1"/>', extra_ns='xmlns:x="urn:other"')
     result = parse_bml(text)
     assert [w.type for w in result.warnings] == [WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED] * 2
     assert "strat" in result.warnings[1].message
