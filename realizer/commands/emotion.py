@@ -73,10 +73,10 @@ def run(args: Any) -> int:
         f"# {profile.rule} of {' and '.join(profile.sources)} at angle {profile.angle:g} deg, "
         f"activation {profile.activation:g}"
     )
-    from realizer.commands.facs import FAP_NAMES
+    from realizer.commands.facs import fap_names
+
+    names = fap_names()
 
     for fap, r in profile.ranges:
-        print(
-            f"{fap:>2}  {FAP_NAMES[fap - 1]:<22} [{r.low:8.1f}, {r.high:8.1f}]  mid {r.center:8.1f}"
-        )
+        print(f"{fap:>2}  {names[fap - 1]:<22} [{r.low:8.1f}, {r.high:8.1f}]  mid {r.center:8.1f}")
     return 0

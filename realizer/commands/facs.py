@@ -15,24 +15,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-#: FAP names of seed 002 Table 7, for readable output.
-_FAP_NAME_TEXT = (
-    "viseme expression open_jaw lower_t_midlip raise_b_midlip stretch_l_cornerlip  "
-    "stretch_r_cornerlip lower_t_lip_lm lower_t_lip_rm raise_b_lip_lm raise_b_lip_rm  "
-    "raise_l_cornerlip raise_r_cornerlip thrust_jaw shift_jaw push_b_lip push_t_lip  "
-    "depress_chin close_t_l_eyelid close_t_r_eyelid close_b_l_eyelid close_b_r_eyelid  "
-    "yaw_l_eyeball yaw_r_eyeball pitch_l_eyeball pitch_r_eyeball thrust_l_eyeball  "
-    "thrust_r_eyeball dilate_l_pupil dilate_r_pupil raise_l_i_eyebrow raise_r_i_eyebrow  "
-    "raise_l_m_eyebrow raise_r_m_eyebrow raise_l_o_eyebrow raise_r_o_eyebrow  "
-    "squeeze_l_eyebrow squeeze_r_eyebrow puff_l_cheek puff_r_cheek lift_l_cheek  "
-    "lift_r_cheek shift_tongue_tip raise_tongue_tip thrust_tongue_tip raise_tongue  "
-    "tongue_roll head_pitch head_yaw head_roll lower_t_midlip_o raise_b_midlip_o  "
-    "stretch_l_cornerlip_o stretch_r_cornerlip_o lower_t_lip_lm_o lower_t_lip_rm_o  "
-    "raise_b_lip_lm_o raise_b_lip_rm_o raise_l_cornerlip_o raise_r_cornerlip_o  "
-    "stretch_l_nose stretch_r_nose raise_nose bend_nose raise_l_ear raise_r_ear  "
-    "pull_l_ear pull_r_ear"
-)
-FAP_NAMES = tuple(_FAP_NAME_TEXT.split())
+
+def fap_names() -> tuple[str, ...]:
+    """FAP names of seed 002 Table 7 (the face's FAP table), FAP n at index n - 1."""
+    from realizer.face.faps import FAP_COUNT, FAP_TABLE
+
+    return tuple(FAP_TABLE[n].name for n in range(1, FAP_COUNT + 1))
 
 
 def register(subparsers: Any) -> None:
@@ -51,8 +39,9 @@ def print_values(values: dict[int, float], as_json: bool) -> None:
     if as_json:
         print(json.dumps({str(fap): round(value, 6) for fap, value in values.items()}))
         return
+    names = fap_names()
     for fap, value in values.items():
-        print(f"{fap:>2}  {FAP_NAMES[fap - 1]:<22} {value:10.1f}")
+        print(f"{fap:>2}  {names[fap - 1]:<22} {value:10.1f}")
 
 
 def run(args: Any) -> int:

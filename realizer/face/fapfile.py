@@ -34,6 +34,7 @@ import numpy.typing as npt
 
 from realizer.face.convert.config import FAP_COUNT
 from realizer.face.convert.errors import DataFileError
+from realizer.face.frame import FapFrame
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -67,6 +68,18 @@ class FapFile:
     def times(self) -> FloatArray:
         """Each frame's time in seconds from the start."""
         return np.arange(self.frames) / self.fps
+
+    def fap_frames(self) -> list[FapFrame]:
+        """The stream as :class:`realizer.face.frame.FapFrame` objects."""
+        times = self.times()
+        return [
+            FapFrame(self.values[i], self.mask[i], float(times[i]), i) for i in range(self.frames)
+        ]
+
+    @classmethod
+    def from_fap_frames(cls, name: str, fps: float, frames: Sequence[FapFrame]) -> FapFile:
+        """A stream from FapFrames (their own times are not kept: the file has fps)."""
+        return fap_file_from_frames(name, fps, [(f.values, f.mask) for f in frames])
 
 
 def _fps_text(fps: float) -> str:

@@ -14,7 +14,7 @@ from realizer.face.convert.facs import facs_to_faps
 from realizer.face.convert.lexemes import lexeme_faps
 from realizer.face.convert.visemes import expression_faps, viseme_faps
 from realizer.face.engine import FaceEngine, parse_profile_choices
-from realizer.face.tracks import mix
+from realizer.face.tracks import Envelope, FapAnimation, mix
 
 HEAD = ("start", "ready", "strokeStart", "stroke", "strokeEnd", "relax", "end")
 
@@ -175,3 +175,15 @@ def test_profile_choices_parse() -> None:
     assert parse_profile_choices("fear=8, joy=1") == {"fear": 8, "joy": 1}
     with pytest.raises(ConversionError):
         parse_profile_choices("boredom=2")
+
+
+def test_default_limits_come_from_the_fap_table_of_seed_002() -> None:
+    from realizer.face.engine import default_limits
+
+    limits = default_limits()
+    assert (limits.lower[2], limits.upper[2]) == (0.0, 4320.0)  # open_jaw: U, 1080 * QP 4
+    assert (limits.lower[18], limits.upper[18]) == (-1080.0, 1080.0)  # close_t_l_eyelid
+    # two full eye closures clamp at the eyelid's range instead of doubling
+    closing = FapAnimation(facs_to_faps(["43"]), Envelope(0, 0, 1, 1))
+    values, _ = mix([closing, closing], 0.5, limits)
+    assert values[18] == 1080.0

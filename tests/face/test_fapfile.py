@@ -79,3 +79,12 @@ def test_malformed_fap_files_report_the_line(text: str, line: int) -> None:
     with pytest.raises(DataFileError) as caught:
         parse_fap_file(text)
     assert caught.value.line == line
+
+
+def test_fap_files_convert_to_and_from_fap_frames() -> None:
+    original = stream()
+    frames = original.fap_frames()
+    assert [f.time for f in frames] == [0.0, 0.04, 0.08] and frames[2].number == 2
+    again = FapFile.from_fap_frames("my face", 25, frames)
+    assert np.array_equal(again.values, original.values)
+    assert np.array_equal(again.mask, original.mask)
