@@ -21,6 +21,8 @@ COMMANDS: tuple[str, ...] = (
     "bench",
     "facs",
     "emotion",
+    "fap_sheet",
+    "face",
 )
 
 
