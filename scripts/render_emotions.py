@@ -6,6 +6,9 @@ Two strips (seed 000 section 6.4):
   activation with its default profile (realizer/face/data/emotion/wheels.txt),
   in the order of seed 000 figure 6.9: joy, sadness, anger, fear, disgust,
   surprise;
+- ``emotions_profiles.png``: every archetypal profile of seed 001 Table 5
+  at its archetype's activation (one row per archetype), from which the
+  default profiles were chosen by eye as seed 000 section 6.4 did;
 - ``emotions_wheel_walk.png``: seed 000's walk over the evenly spaced wheel,
   16 angles 22.5 degrees apart (rows) at activation 1, 3, 5 and 7 (columns),
   labelled with the wheel's emotion names.
@@ -19,10 +22,14 @@ deformed and rendered offscreen (OSMesa or EGL). Run from the repository root:
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
+
+# run from a checkout: the repository's package wins over an installed one
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 ORDER = ("joy", "sadness", "anger", "fear", "disgust", "surprise")
 WHEEL_NAMES = (
@@ -33,10 +40,10 @@ ACTIVATIONS = (1.0, 3.0, 5.0, 7.0)
 
 
 def load_face():  # type: ignore[no-untyped-def]
-    """The default face of the realizer (branch render)."""
-    import realizer.face as face_package
+    """The default face of the realizer (realizer/face/default.py)."""
+    from realizer.face.default import load_default_face
 
-    return face_package.load_default_face()
+    return load_default_face()
 
 
 def fap_vector(configuration, limits) -> np.ndarray:  # type: ignore[no-untyped-def]
@@ -74,19 +81,23 @@ def main() -> None:
     from realizer.face.convert.emotion import load_default_converter
     from realizer.face.deform import deform
     from realizer.face.engine import default_limits
-    from realizer.face.render import render_face
+    from realizer.face.render import FaceRenderer, Framing
 
     face = load_face()
     converter = load_default_converter()
     limits = default_limits()
     size = (args.size, args.size)
 
+    # frame the face from chin to brows, not the whole head
+    points = np.array([face.feature_position(name) for name in ("2.1", "4.5", "4.6", "4.1")])
+    renderer = FaceRenderer(face, *size, framing=Framing.of_points(points, margin=0.22))
+
     def render(configuration) -> Image.Image:  # type: ignore[no-untyped-def]
         vertices = deform(face, fap_vector(configuration, limits))
-        return Image.fromarray(render_face(face, vertices, size=size))
+        return Image.fromarray(renderer.render(vertices))
 
     args.out.mkdir(parents=True, exist_ok=True)
-    neutral = label(Image.fromarray(render_face(face, None, size=size)), "neutral")
+    neutral = label(Image.fromarray(renderer.render(None)), "neutral")
     measured = converter.wheel("measured")
     row = [neutral]
     for name in ORDER:
@@ -94,6 +105,25 @@ def main() -> None:
         profile = converter.for_point(archetype.angle, archetype.activation)
         row.append(label(render(profile.configuration()), f"{name} ({profile.sources[0]})"))
     grid([row]).save(args.out / "emotions_archetypes.png")
+
+    sheet = []
+    for name in ORDER:
+        archetype = measured.archetype(name)
+        sheet.append(
+            [
+                label(
+                    render(
+                        converter.for_point(
+                            archetype.angle, archetype.activation, choices={name: number}
+                        ).configuration()
+                    ),
+                    f"{name.capitalize()} {number}"
+                    + (" (default)" if number == archetype.default_profile else ""),
+                )
+                for number in converter.profiles.numbers(name)
+            ]
+        )
+    grid(sheet).save(args.out / "emotions_profiles.png")
 
     rows = []
     for index, name in enumerate(WHEEL_NAMES):
@@ -110,8 +140,9 @@ def main() -> None:
     half = len(rows) // 2
     joined = [left + right for left, right in zip(rows[:half], rows[half:], strict=True)]
     grid(joined).save(args.out / "emotions_wheel_walk.png")
+    renderer.close()
     print(
-        f"wrote {args.out / 'emotions_archetypes.png'} and {args.out / 'emotions_wheel_walk.png'}"
+        f"wrote emotions_archetypes.png, emotions_profiles.png, emotions_wheel_walk.png: {args.out}"
     )
 
 
