@@ -1,0 +1,45 @@
+"""MPEG-4 facial animation: FAP table, FAPU, feature points, face model, deformation.
+
+Seeds: 002 (Tekalp & Ostermann, section 2.1 and Annex: FAPs, feature points,
+FAPU, FaceDefMesh/FaceDefTransform) and 000 (chapter 4: FaceEditor's
+deformers, vertex masks, rigid jaw, eyes and neck, the parameter XML).
+
+The public names are imported lazily, so ``import realizer.face`` stays cheap:
+
+* :data:`FAP_TABLE`, :class:`FapInfo`, :func:`fap` -- :mod:`realizer.face.faps`
+* :class:`Fapu` -- :mod:`realizer.face.fapu`
+* :class:`FapFrame` -- :mod:`realizer.face.frame`
+* :class:`Face`, :class:`FaceParameters` -- :mod:`realizer.face.model`
+* :func:`deform`, :class:`FaceRig` -- :mod:`realizer.face.deform`
+* :func:`load_face`, :func:`save_face` -- :mod:`realizer.face.paramfile`
+* :func:`build_test_head` -- :mod:`realizer.face.testhead`
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_EXPORTS = {
+    "FAP_TABLE": "faps",
+    "FapInfo": "faps",
+    "fap": "faps",
+    "Fapu": "fapu",
+    "FapFrame": "frame",
+    "Face": "model",
+    "FaceParameters": "model",
+    "deform": "deform",
+    "FaceRig": "deform",
+    "load_face": "paramfile",
+    "save_face": "paramfile",
+    "build_test_head": "testhead",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'realizer.face' has no attribute {name!r}")
+    return getattr(importlib.import_module(f"realizer.face.{module}"), name)

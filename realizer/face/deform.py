@@ -1,0 +1,579 @@
+"""Deformation: a FAP vector and a face -> deformed vertex positions.
+
+Seed 000 §4.3.3-4.3.4 (influence ellipsoids, easing, Bezier smoothing, vertex
+masks; lower jaw, eyes and neck as rigid objects) and seed 002 §2.1.3.4
+(FaceDefMesh, FaceDefTransform). :func:`deform` is a pure function of
+(face, FAP vector); the work that depends only on the face is done once, in
+a :class:`FaceRig` cached per face, so a frame costs O(affected vertices):
+
+1. **Vertex displacements** (everything linear in one FAP value):
+   influence deformers give, per vertex and FAP, a weight i in [0, 1] and a
+   direction u; FaceDefMesh tables and pupil dilation give piecewise-linear
+   displacements. Both are sparse matrices built once.
+2. **Rigid transforms**, in file order: tongue roll, eyeballs (turn about
+   their centre, then thrust), lower jaw and lower teeth (turn, thrust,
+   shift), and last the head about feature point 7.1, which carries all the
+   rest. Consecutive transforms of the same parts are composed into one 3x4
+   affine map per frame and applied as one vectorised product.
+
+How the displacements of several FAPs on one vertex combine
+--------------------------------------------------------------
+FaceEditor (seed 000 §4.3.1) *averages* the displacements a vertex gets. Then
+a feature point whose neighbours' spheres reach it moves less than its FAP
+says, and three raised upper-lip points give the w-shaped lip of seed 000
+Figure 7.1; plain *summing* has the opposite fault (the overlap bulges
+beyond any FAP's amplitude). Seed 000 §7.1 suggests cancelling a vertex's
+extra vectors that point the same way. We do that smoothly, per axis and
+sign: the contributions i * a_f * u_f of the influence deformers are summed
+separately for positive and negative components of each axis, and each sum
+is capped at the largest single FAP amplitude |a_f * u_f| (weight 1) among
+the deformers that reach the vertex::
+
+    d_k = min(sum of positive parts, max positive amplitude)
+        - min(sum of negative parts, max negative amplitude)
+
+So: one FAP alone moves its vertices exactly i * a * u (the cap is never
+reached, i <= 1); a feature point moves by exactly its own FAP when its
+neighbours push the same way less strongly; between two equal pushes the lip
+stays flat instead of dipping (w) or bulging; FAPs along different axes (jaw
+down, corner sideways) add independently; opposite pushes cancel. The rule
+is continuous in every FAP value. FaceDefMesh tables and pupil dilation are
+added on top unchanged, as MPEG-4 prescribes for them.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from realizer.face.errors import FaceError
+from realizer.face.facedef import FaceDefMesh
+from realizer.face.faps import FAP_COUNT, FAP_TABLE, as_fap_vector, clamp_unidirectional
+from realizer.face.model import (
+    CosineDeformer,
+    DilateDeformer,
+    EaseDeformer,
+    Face,
+    InfluenceDeformer,
+    PointDeformer,
+    RollDeformer,
+    SmoothDeformer,
+    TransformDeformer,
+)
+
+#: Influences below this are treated as zero (no entry in the sparse matrix).
+MIN_INFLUENCE = 1e-9
+#: Vertices closer than this (metres) to a point deformer's feature vertex move with it.
+SAME_POSITION_M = 1e-7
+
+
+# -- falloff curves ---------------------------------------------------------------------
+
+
+def ease_exponent(ease: float) -> float:
+    """Seed 000 §4.3.3: 1 + e/100 for e < 0, 1 + e/20 for e >= 0 (e in -100..100)."""
+    if not -100.0 <= ease <= 100.0:
+        raise FaceError(f"ease must be in -100..100, not {ease}")
+    return 1.0 + ease / 100.0 if ease < 0 else 1.0 + ease / 20.0
+
+
+def ease_falloff(r: np.ndarray, ease: float) -> np.ndarray:
+    """Influence at normalised distance r: (1 - r)**p inside the ellipsoid, 0 outside."""
+    p = ease_exponent(ease)
+    inside = r < 1.0
+    out = np.zeros_like(r, dtype=np.float64)
+    out[inside] = (1.0 - r[inside]) ** p
+    return out
+
+
+def cosine_falloff(r: np.ndarray) -> np.ndarray:
+    """Raised cosine (Xface): (1 + cos(pi r)) / 2 for r < 1, else 0."""
+    out: np.ndarray = np.where(r < 1.0, 0.5 * (1.0 + np.cos(np.pi * np.minimum(r, 1.0))), 0.0)
+    return out
+
+
+def smooth_falloff(r: np.ndarray, smooth_center: float, smooth_side: float) -> np.ndarray:
+    """Bezier influence curve of seed 000 §4.3.4 (see :class:`SmoothDeformer`).
+
+    ``smooth_center`` and ``smooth_side`` are percent (0..100) of the size.
+    """
+    c = smooth_center / 100.0
+    s = smooth_side / 100.0
+    if not (0.0 <= c <= 1.0 and 0.0 <= s <= 1.0):
+        raise FaceError("smooth-center and smooth-side must be in 0..100")
+    reach = 1.0 + (c + s) / 2.0
+    x1, x2, x3 = c, reach - s, reach
+    r = np.asarray(r, dtype=np.float64)
+    out = np.zeros_like(r)
+    inside = r < reach
+    target = r[inside]
+    # x(t) is non-decreasing (0 <= x1 <= x2 <= x3), so bisection finds t.
+    lo = np.zeros_like(target)
+    hi = np.ones_like(target)
+    for _ in range(48):
+        mid = 0.5 * (lo + hi)
+        omt = 1.0 - mid
+        x = 3 * x1 * mid * omt**2 + 3 * x2 * mid**2 * omt + x3 * mid**3
+        below = x < target
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    t = 0.5 * (lo + hi)
+    out[inside] = (1 - t) ** 3 + 3 * t * (1 - t) ** 2
+    return out
+
+
+# -- compiled pieces --------------------------------------------------------------------
+
+
+def _unit(vector: tuple[float, float, float], what: str) -> np.ndarray:
+    v = np.asarray(vector, dtype=np.float64)
+    norm = float(np.linalg.norm(v))
+    if not np.isfinite(norm) or norm < 1e-12:
+        raise FaceError(f"{what}: the direction must not be zero")
+    return v / norm
+
+
+def fap_direction(fap_number: int, direction: tuple[float, float, float]) -> np.ndarray:
+    """The per-unit displacement direction of an influence deformer.
+
+    Rescaled so its component along the standard axis of the FAP (Table 7)
+    is exactly 1; for FAPs without an axis, normalised. Raises
+    :class:`FaceError` if the direction does not point the standard way.
+    """
+    d = np.asarray(direction, dtype=np.float64)
+    axis = FAP_TABLE[fap_number].axis
+    if axis is None:
+        return _unit(direction, f"FAP {fap_number}")
+    along = float(d @ np.asarray(axis))
+    if not along > 1e-6 * max(1.0, float(np.linalg.norm(d))):
+        raise FaceError(
+            f"FAP {fap_number} ({FAP_TABLE[fap_number].name}): direction {tuple(direction)} "
+            f"does not point {FAP_TABLE[fap_number].direction}"
+        )
+    return d / along
+
+
+@dataclass(frozen=True, slots=True)
+class _Transform:
+    """One compiled rigid motion: a rotation or translation of some vertices."""
+
+    fap_index: int
+    kind: str  # "rotation", "translation", "roll"
+    unit: float  # FAPU of the FAP times the setting's scale
+    axis: np.ndarray  # (3,) unit vector
+    pivot: np.ndarray  # (3,)
+    key: tuple[object, ...]  # transforms with the same key move the same vertices
+
+
+@dataclass(frozen=True, slots=True)
+class _TransformGroup:
+    indices: np.ndarray | None  # None = every vertex
+    weights: np.ndarray | None  # (k, 1) float32 blend weights, None = rigid
+    members: tuple[_Transform, ...]
+
+
+def rotation_matrix(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Right-handed rotation by ``angle`` radians about the unit vector ``axis``."""
+    x, y, z = axis
+    c, s = np.cos(angle), np.sin(angle)
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    matrix: np.ndarray = np.eye(3) + s * k + (1.0 - c) * (k @ k)
+    return matrix
+
+
+class FaceRig:
+    """Everything about a face that does not depend on the FAP values.
+
+    Build once per face (:func:`rig_for` caches it) and call :meth:`deform`
+    per frame. Raises :class:`FaceError` when a setting cannot be compiled
+    (a missing feature point or part, a direction against the standard).
+    """
+
+    def __init__(self, face: Face) -> None:
+        self.face = face
+        self.neutral = face.vertices
+        self.fapu_per_fap = face.fapu.per_fap()
+        n = face.vertex_count
+        params = face.params
+        # influence columns
+        col_fap: list[int] = []
+        entry_vertex: list[np.ndarray] = []
+        entry_col: list[np.ndarray] = []
+        entry_weight: list[np.ndarray] = []
+        col_dir: list[np.ndarray] = []
+        # summed (FaceDefMesh-like) columns
+        sum_rows: list[np.ndarray] = []
+        sum_cols: list[np.ndarray] = []
+        sum_vals: list[np.ndarray] = []
+        sum_fap: list[int] = []
+        sum_low: list[float] = []
+        sum_high: list[float] = []
+        transforms: list[tuple[_Transform, np.ndarray, np.ndarray | None]] = []
+
+        for setting in params.deformers:
+            if not 3 <= setting.fap <= FAP_COUNT:
+                raise FaceError(f"deformers drive FAPs 3..68, not {setting.fap}")
+            if isinstance(setting, InfluenceDeformer | PointDeformer):
+                vertices, weights = self._influence(setting)
+                if vertices.size == 0:
+                    continue
+                col_dir.append(fap_direction(setting.fap, setting.direction))
+                entry_vertex.append(vertices)
+                entry_col.append(np.full(vertices.size, len(col_fap)))
+                entry_weight.append(weights)
+                col_fap.append(setting.fap - 1)
+            elif isinstance(setting, FaceDefMesh | DilateDeformer):
+                if isinstance(setting, FaceDefMesh):
+                    vertices = np.asarray(setting.vertices, dtype=np.int64)
+                    if vertices.size and (vertices.min() < 0 or vertices.max() >= n):
+                        raise FaceError(f"FaceDefMesh of FAP {setting.fap} names a missing vertex")
+                    disp = setting.displacement_array()
+                    borders = np.asarray(setting.intervals, dtype=np.float64)
+                    lows = borders[:-1].copy()
+                    highs = borders[1:].copy()
+                    lows[0], highs[-1] = -np.inf, np.inf
+                else:
+                    vertices, radial = self._dilation(setting)
+                    disp = radial[:, None, :] * setting.scale
+                    lows, highs = np.array([-np.inf]), np.array([np.inf])
+                base = len(sum_fap)
+                for k in range(disp.shape[1]):
+                    sum_fap.append(setting.fap - 1)
+                    sum_low.append(float(lows[k]))
+                    sum_high.append(float(highs[k]))
+                    for axis in range(3):
+                        sum_rows.append(vertices * 3 + axis)
+                        sum_cols.append(np.full(vertices.size, base + k))
+                        sum_vals.append(disp[:, k, axis])
+            elif isinstance(setting, TransformDeformer | RollDeformer):
+                transforms.extend(self._transforms(setting))
+            else:  # pragma: no cover - the union is closed
+                raise FaceError(f"unknown deformer {setting!r}")
+
+        self._build_influence(n, col_fap, entry_vertex, entry_col, entry_weight, col_dir)
+        self._build_summed(n, sum_rows, sum_cols, sum_vals, sum_fap, sum_low, sum_high)
+        self._build_transforms(transforms)
+
+    # -- compile settings -------------------------------------------------------------
+
+    def _centre(self, fap_number: int, override: str | None) -> np.ndarray:
+        point = override or FAP_TABLE[fap_number].feature_point
+        if point is None:
+            raise FaceError(f"FAP {fap_number} has no feature point; name one in the setting")
+        return self.face.feature_position(point)
+
+    def _candidates(self, setting: InfluenceDeformer | PointDeformer) -> np.ndarray:
+        vertices = self.face.part(setting.part).astype(np.int64)
+        if isinstance(setting, InfluenceDeformer) and setting.use_vertex_mask:
+            mask = np.asarray(self.face.params.vertex_masks.get(setting.fap, ()), dtype=np.int64)
+            keep = np.isin(vertices, mask)
+            vertices = vertices[~keep] if setting.invert_vertex_mask else vertices[keep]
+        return vertices
+
+    def _influence(
+        self, setting: InfluenceDeformer | PointDeformer
+    ) -> tuple[np.ndarray, np.ndarray]:
+        centre = self._centre(setting.fap, setting.feature_point)
+        vertices = self._candidates(setting)
+        positions = self.neutral[vertices].astype(np.float64)
+        if isinstance(setting, PointDeformer):
+            point = setting.feature_point or FAP_TABLE[setting.fap].feature_point
+            assert point is not None
+            anchor = self.neutral[self.face.feature_vertex(point)].astype(np.float64)
+            near = np.linalg.norm(positions - anchor, axis=1) <= SAME_POSITION_M
+            return vertices[near], np.ones(int(near.sum()))
+        radii = setting.size * np.asarray(setting.scale, dtype=np.float64)
+        if setting.size <= 0 or np.any(radii <= 0):
+            raise FaceError(f"FAP {setting.fap}: size and scales must be positive")
+        r = np.linalg.norm((positions - centre) / radii, axis=1)
+        if isinstance(setting, EaseDeformer):
+            weights = ease_falloff(r, setting.ease)
+        elif isinstance(setting, SmoothDeformer):
+            weights = smooth_falloff(r, setting.smooth_center, setting.smooth_side)
+        elif isinstance(setting, CosineDeformer):
+            weights = cosine_falloff(r)
+        else:
+            weights = ease_falloff(r, 0.0)
+        keep = weights > MIN_INFLUENCE
+        return vertices[keep], weights[keep]
+
+    def _pivot(
+        self, setting: TransformDeformer | RollDeformer | DilateDeformer
+    ) -> np.ndarray:
+        if setting.pivot_fp is not None:
+            return self.face.feature_position(setting.pivot_fp)
+        if setting.pivot is not None:
+            return np.asarray(setting.pivot, dtype=np.float64)
+        if isinstance(setting, TransformDeformer) and setting.kind == "translation":
+            return np.zeros(3)
+        raise FaceError(f"FAP {setting.fap}: a rotation needs a pivot or pivot-fp")
+
+    def _dilation(self, setting: DilateDeformer) -> tuple[np.ndarray, np.ndarray]:
+        vertices = self.face.part(setting.part).astype(np.int64)
+        pivot = self._pivot(setting)
+        axis = _unit(setting.axis, f"FAP {setting.fap}")
+        rel = self.neutral[vertices].astype(np.float64) - pivot
+        radial = rel - np.outer(rel @ axis, axis)
+        rim = float(np.linalg.norm(radial, axis=1).max()) if vertices.size else 0.0
+        if rim <= 0:
+            raise FaceError(f"FAP {setting.fap}: the pupil part has no extent")
+        return vertices, radial / rim
+
+    def _transforms(
+        self, setting: TransformDeformer | RollDeformer
+    ) -> list[tuple[_Transform, np.ndarray, np.ndarray | None]]:
+        unit = self.fapu_per_fap[setting.fap - 1] * setting.scale
+        axis = _unit(setting.axis, f"FAP {setting.fap}")
+        pivot = self._pivot(setting)
+        if isinstance(setting, RollDeformer):
+            vertices = self.face.part(setting.part).astype(np.int64)
+            # which side of the tongue's mid-plane (the plane through the pivot
+            # containing the axis and the up vector) each vertex lies on
+            side_normal = np.cross(np.array([0.0, 1.0, 0.0]), axis)
+            if np.linalg.norm(side_normal) < 1e-9:
+                raise FaceError(f"FAP {setting.fap}: the roll axis must not be vertical")
+            side = (self.neutral[vertices].astype(np.float64) - pivot) @ side_normal
+            plus, minus = vertices[side > 0], vertices[side < 0]
+            # +x side of a +z axis turns up under a positive rotation
+            sign = 1.0 if float(np.cross(axis, side_normal)[1]) > 0 else -1.0
+            return [
+                (_Transform(setting.fap - 1, "rotation", sign * unit, axis, pivot,
+                            ("roll+", id(setting))), plus, None),
+                (_Transform(setting.fap - 1, "rotation", -sign * unit, axis, pivot,
+                            ("roll-", id(setting))), minus, None),
+            ]
+        vertices = self.face.parts_union(setting.parts).astype(np.int64)
+        weights = None
+        if setting.falloff > 0 and setting.kind == "rotation":
+            drop = pivot[1] - self.neutral[vertices, 1].astype(np.float64)
+            weights = np.clip(1.0 - drop / setting.falloff, 0.0, 1.0)
+        key: tuple[object, ...] = (setting.parts, setting.falloff if weights is not None else 0.0)
+        if weights is not None:
+            key = (*key, tuple(pivot))
+        return [(_Transform(setting.fap - 1, setting.kind, unit, axis, pivot, key),
+                 vertices, weights)]
+
+    # -- build matrices -----------------------------------------------------------------
+
+    def _build_influence(
+        self,
+        n: int,
+        col_fap: list[int],
+        entry_vertex: list[np.ndarray],
+        entry_col: list[np.ndarray],
+        entry_weight: list[np.ndarray],
+        col_dir: list[np.ndarray],
+    ) -> None:
+        columns = len(col_fap)
+        self.influence_fap = np.asarray(col_fap, dtype=np.int64)
+        self.influence_unit = (
+            self.fapu_per_fap[self.influence_fap] if columns else np.zeros(0)
+        )
+        if columns == 0:
+            self._has_influence = False
+            return
+        self._has_influence = True
+        vertex = np.concatenate(entry_vertex)
+        col = np.concatenate(entry_col)
+        weight = np.concatenate(entry_weight)
+        directions = np.asarray(col_dir)  # (columns, 3)
+        rows_l, cols_l, signed_l, mag_l = [], [], [], []
+        for axis in range(3):
+            comp = directions[col, axis]
+            nz = comp != 0
+            rows_l.append(vertex[nz] * 3 + axis)
+            # column j for a positive component, j + columns for a negative one
+            cols_l.append(np.where(comp[nz] > 0, col[nz], col[nz] + columns))
+            signed_l.append(weight[nz] * comp[nz])
+            mag_l.append(np.abs(comp[nz]))
+        flat = np.concatenate(rows_l)
+        col2 = np.concatenate(cols_l)
+        signed = np.concatenate(signed_l)
+        mag = np.concatenate(mag_l)
+        order = np.lexsort((col2, flat))
+        flat, col2, signed, mag = flat[order], col2[order], signed[order], mag[order]
+        rows, starts, counts = np.unique(flat, return_index=True, return_counts=True)
+        single = counts == 1
+        # rows reached by one deformer only: the exact contribution, a gather
+        s_entries = starts[single]
+        self._single_rows = rows[single]
+        self._single_col = col2[s_entries] % columns
+        self._single_coef = signed[s_entries]
+        # rows reached by several: the capped sums of the module docstring
+        multi_rows = rows[~single]
+        in_multi = np.repeat(~single, counts)
+        m_flat = flat[in_multi]
+        m_col2 = col2[in_multi]
+        self._multi_rows = multi_rows
+        local = np.searchsorted(multi_rows, m_flat)
+        self._multi_matrix = sp.csr_matrix(
+            (np.abs(signed[in_multi]), (local, m_col2)), shape=(multi_rows.size, 2 * columns)
+        )
+        self._multi_matrix.sort_indices()
+        self._multi_mag = mag[in_multi]
+        self._multi_col2 = m_col2
+        indptr = np.concatenate([[0], np.cumsum(counts[~single])])
+        self._multi_starts = indptr[:-1]
+        self._columns = columns
+
+    def _build_summed(
+        self,
+        n: int,
+        rows_l: list[np.ndarray],
+        cols_l: list[np.ndarray],
+        vals_l: list[np.ndarray],
+        fap: list[int],
+        low: list[float],
+        high: list[float],
+    ) -> None:
+        self._has_summed = bool(fap)
+        if not fap:
+            return
+        rows = np.concatenate(rows_l)
+        cols = np.concatenate(cols_l)
+        vals = np.concatenate(vals_l)
+        keep = vals != 0
+        rows, cols, vals = rows[keep], cols[keep], vals[keep]
+        unique_rows = np.unique(rows)
+        local = np.searchsorted(unique_rows, rows)
+        self._summed_rows = unique_rows
+        self._summed_matrix = sp.csr_matrix(
+            (vals, (local, cols)), shape=(unique_rows.size, len(fap))
+        )
+        self._summed_fap = np.asarray(fap, dtype=np.int64)
+        self._summed_low = np.asarray(low)
+        self._summed_high = np.asarray(high)
+        self._summed_zero = np.clip(0.0, self._summed_low, self._summed_high)
+
+    def _build_transforms(
+        self, transforms: list[tuple[_Transform, np.ndarray, np.ndarray | None]]
+    ) -> None:
+        n = self.face.vertex_count
+        groups: list[_TransformGroup] = []
+        last_key: object = None
+        for transform, vertices, weights in transforms:
+            if vertices.size == 0:
+                continue
+            if groups and transform.key == last_key:
+                group = groups[-1]
+                groups[-1] = _TransformGroup(
+                    group.indices, group.weights, (*group.members, transform)
+                )
+                continue
+            indices = None if vertices.size == n else vertices
+            w = None if weights is None else weights.astype(np.float32)[:, None]
+            groups.append(_TransformGroup(indices, w, (transform,)))
+            last_key = transform.key
+        self._groups = tuple(groups)
+
+    # -- per frame ----------------------------------------------------------------------
+
+    def deform(self, fap_vector: np.ndarray) -> np.ndarray:
+        """(n, 3) float32 vertex positions (metres) for a FAP vector.
+
+        ``fap_vector`` (68,) float64 in FAPU-scaled units; slots 0 and 1
+        (FAPs 1 and 2) are ignored and negative values of unidirectional
+        FAPs count as 0 (see :func:`realizer.face.faps.clamp_unidirectional`).
+        """
+        values = clamp_unidirectional(as_fap_vector(fap_vector))
+        values[:2] = 0.0
+        out = self.neutral.copy()
+        flat = out.reshape(-1)
+        if self._has_influence:
+            amount = values[self.influence_fap] * self.influence_unit  # metres per column
+            if np.any(amount):
+                if self._single_rows.size:
+                    flat[self._single_rows] += (
+                        self._single_coef * amount[self._single_col]
+                    ).astype(np.float32)
+                if self._multi_rows.size:
+                    flat[self._multi_rows] += self._capped(amount).astype(np.float32)
+        if self._has_summed:
+            coef = (
+                np.clip(values[self._summed_fap], self._summed_low, self._summed_high)
+                - self._summed_zero
+            ) * self.fapu_per_fap[self._summed_fap]
+            if np.any(coef):
+                flat[self._summed_rows] += (self._summed_matrix @ coef).astype(np.float32)
+        for group in self._groups:
+            out = self._apply(group, values, out)
+        return out
+
+    def _capped(self, amount: np.ndarray) -> np.ndarray:
+        positive = np.maximum(amount, 0.0)
+        negative = np.maximum(-amount, 0.0)
+        # column j: positive direction component; j + J: negative component
+        push_up = np.concatenate([positive, negative])  # makes the component grow
+        push_down = np.concatenate([negative, positive])
+        both = np.stack([push_up, push_down], axis=1)
+        sums = self._multi_matrix @ both  # (rows, 2)
+        peaks = np.maximum.reduceat(
+            self._multi_mag[:, None] * both[self._multi_col2], self._multi_starts, axis=0
+        )
+        capped = np.minimum(sums, peaks)
+        result: np.ndarray = capped[:, 0] - capped[:, 1]
+        return result
+
+    def _apply(self, group: _TransformGroup, values: np.ndarray, out: np.ndarray) -> np.ndarray:
+        matrix = np.eye(3)
+        offset = np.zeros(3)
+        moved = False
+        for member in group.members:
+            amount = values[member.fap_index] * member.unit
+            if amount == 0.0:
+                continue
+            moved = True
+            if member.kind == "translation":
+                offset = offset + amount * member.axis
+            else:
+                rot = rotation_matrix(member.axis, amount)
+                matrix = rot @ matrix
+                offset = rot @ offset + member.pivot - rot @ member.pivot
+        if not moved:
+            return out
+        m32 = matrix.T.astype(np.float32)
+        t32 = offset.astype(np.float32)
+        if group.indices is None:
+            if group.weights is None:
+                moved_all = out @ m32
+                moved_all += t32
+                return moved_all
+            target = out @ m32 + t32
+            out += group.weights * (target - out)
+            return out
+        points = out[group.indices]
+        target = points @ m32 + t32
+        if group.weights is not None:
+            target = points + group.weights * (target - points)
+        out[group.indices] = target
+        return out
+
+
+_RIGS: weakref.WeakKeyDictionary[Face, FaceRig] = weakref.WeakKeyDictionary()
+
+
+def rig_for(face: Face) -> FaceRig:
+    """The cached :class:`FaceRig` of a face (built on first use)."""
+    rig = _RIGS.get(face)
+    if rig is None:
+        rig = FaceRig(face)
+        _RIGS[face] = rig
+    return rig
+
+
+def deform(face: Face, fap_vector: np.ndarray) -> np.ndarray:
+    """Deformed vertex positions, (n, 3) float32 metres: a pure function.
+
+    ``fap_vector``: (68,) float64, FAP n at index n-1, FAPU-scaled units.
+    Raises :class:`realizer.face.errors.FapValueError` for a malformed
+    vector and :class:`FaceError` if the face's settings cannot be compiled.
+    """
+    return rig_for(face).deform(fap_vector)
+
+
+def neutral_vector() -> np.ndarray:
+    """A (68,) float64 zero FAP vector."""
+    return np.zeros(FAP_COUNT)
