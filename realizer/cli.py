@@ -21,6 +21,9 @@ COMMANDS: tuple[str, ...] = (
     "bench",
     "fap_sheet",
     "face",
+    "serve",
+    "send",
+    "render",
 )
 
 
