@@ -23,6 +23,9 @@ COMMANDS: tuple[str, ...] = (
     "emotion",
     "fap_sheet",
     "face",
+    "serve",
+    "send",
+    "render",
 )
 
 
