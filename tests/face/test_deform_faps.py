@@ -246,3 +246,20 @@ def test_the_head_carries_the_turned_eyes():
     assert np.allclose(both[eye], expected, atol=1e-6)
     skin = HEAD.part("skin")
     assert np.allclose(both[skin], head_only[skin], atol=1e-7)
+
+
+def test_the_head_pose_can_be_taken_apart_from_the_vertices():
+    from realizer.face.deform import rig_for
+
+    vector = fap_vector({3: 300.0, 23: 5000.0, 48: 4000.0, 49: -3000.0, 50: 1000.0})
+    local, pose = rig_for(HEAD).deform_posed(vector)
+    assert pose.shape == (4, 4)
+    assert np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3))
+    posed = local.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
+    assert np.allclose(posed, deform(HEAD, vector), atol=1e-6)
+    # without head FAPs the pose is the identity and the vertices are the result
+    no_head = vector.copy()
+    no_head[47:50] = 0.0
+    local, pose = rig_for(HEAD).deform_posed(no_head)
+    assert np.array_equal(pose, np.eye(4))
+    assert np.array_equal(local, deform(HEAD, no_head))
