@@ -1,0 +1,97 @@
+"""``realizer face``: render one pose of a face to a PNG.
+
+``realizer face --faps "3=400 31=200" -o face.png`` sets FAPs by number (or
+name) and value (FAPU-scaled units, seed 002 Table 7) on the default face (or
+``--face PATH``) and renders it from the fixed frontal camera of
+:mod:`realizer.face.render`. ``realizer face FILE.fap -o face.png`` takes the
+first frame of a .fap file (needs realizer.face.fapfile; ``--frame N`` picks
+another).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import numpy as np
+    import numpy.typing as npt
+
+
+def parse_fap_assignments(text: str) -> npt.NDArray[np.float64]:
+    """``"3=400 open_jaw=200 31=-50"`` -> a (68,) FAP vector. Raises ValueError."""
+    import numpy as np
+
+    from realizer.face.faps import FAP_TABLE
+
+    by_name = {info.name: number for number, info in FAP_TABLE.items()}
+    vector = np.zeros(68)
+    for item in text.replace(",", " ").split():
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"expected FAP=VALUE, got {item!r}")
+        number = int(key) if key.isdigit() else by_name.get(key, 0)
+        if not 1 <= number <= 68:
+            raise ValueError(f"unknown FAP {key!r}")
+        vector[number - 1] = float(value)
+    return vector
+
+
+def fap_file_frame(path: str, frame: int) -> npt.NDArray[np.float64]:
+    """The FAP vector of frame ``frame`` of a .fap file."""
+    import importlib
+
+    import numpy as np
+
+    try:
+        fapfile: Any = importlib.import_module("realizer.face.fapfile")
+    except ImportError as error:
+        raise ValueError("reading .fap files needs realizer.face.fapfile; use --faps") from error
+    fap = fapfile.read_fap_file(path)
+    if not 0 <= frame < fap.frames:
+        raise ValueError(f"{path} has {fap.frames} frames, no frame {frame}")
+    return np.asarray(fap.values[frame], dtype=np.float64)
+
+
+def run(args: argparse.Namespace) -> int:
+    from realizer.face.deform import deform
+    from realizer.face.render import FaceRenderer, RenderUnavailableError, save_png
+
+    try:
+        if args.file:
+            values = fap_file_frame(args.file, args.frame)
+        else:
+            values = parse_fap_assignments(args.faps or "")
+    except (ValueError, OSError) as error:
+        print(f"realizer face: {error}")
+        return 2
+    if args.face:
+        from realizer.face.paramfile import load_face
+
+        face = load_face(args.face)
+    else:
+        from realizer.face.default import load_default_face
+
+        face = load_default_face()
+    try:
+        with FaceRenderer(face, args.size, args.size) as renderer:
+            image = renderer.render(deform(face, values), view=args.view)
+    except RenderUnavailableError as error:
+        print(f"realizer face: {error}")
+        return 1
+    save_png(image, args.output)
+    print(f"wrote {args.output}")
+    return 0
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser("face", help="render one FAP pose of a face to a PNG")
+    parser.add_argument("file", nargs="?", help="a .fap file (its first frame, or --frame)")
+    parser.add_argument("--faps", help='FAP values, e.g. "3=400 31=200" or "open_jaw=400"')
+    parser.add_argument("--frame", type=int, default=0, help="frame of the .fap file (0)")
+    parser.add_argument("--face", help="a face file (STEM, STEM.npz or STEM.xml)")
+    parser.add_argument("--size", type=int, default=512, help="image size in pixels (512)")
+    parser.add_argument("--view", choices=("front", "left", "right"), default="front")
+    parser.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
+    parser.set_defaults(run=run)

