@@ -164,3 +164,13 @@ def test_entities_are_not_expanded():
 def test_a_missing_face_file_is_reported(tmp_path: Path):
     with pytest.raises(FaceFileError):
         load_face(tmp_path / "nothing")
+
+
+def test_a_one_element_name_array_is_read_as_the_name(tmp_path: Path):
+    head = build_test_head()
+    save_face(head, tmp_path / "head")
+    with np.load(tmp_path / "head.npz") as data:
+        arrays = {key: data[key] for key in data.files}
+    arrays["name"] = np.array(["someone"])
+    np.savez(tmp_path / "head.npz", **arrays)
+    assert load_face(tmp_path / "head").name == "someone"
