@@ -43,8 +43,9 @@ added on top unchanged, as MPEG-4 prescribes for them.
 
 from __future__ import annotations
 
+import math
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -68,6 +69,8 @@ from realizer.face.model import (
 MIN_INFLUENCE = 1e-9
 #: Vertices closer than this (metres) to a point deformer's feature vertex move with it.
 SAME_POSITION_M = 1e-7
+#: How many sets of set FAPs a rig remembers the sparse entries of.
+SELECTION_CACHE = 16
 
 
 # -- falloff curves ---------------------------------------------------------------------
@@ -166,13 +169,20 @@ class _Transform:
     axis: np.ndarray  # (3,) unit vector
     pivot: np.ndarray  # (3,)
     key: tuple[object, ...]  # transforms with the same key move the same vertices
+    axis_tuple: tuple[float, float, float] = (0.0, 0.0, 0.0)  # plain floats for _affine
+    pivot_tuple: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "axis_tuple", tuple(float(c) for c in self.axis))
+        object.__setattr__(self, "pivot_tuple", tuple(float(c) for c in self.pivot))
 
 
 @dataclass(frozen=True, slots=True)
 class _TransformGroup:
-    indices: np.ndarray | slice | None  # None = every vertex; a slice for a range
-    weights: np.ndarray | None  # (k, 1) float32 blend weights, None = rigid
+    indices: np.ndarray | slice | None  # moved rigidly; None = every vertex; slice = range
     members: tuple[_Transform, ...]
+    blend: np.ndarray | None = None  # vertices moved part way (a neck below 7.1)
+    weights: np.ndarray | None = None  # (k, 1) float32 weights of ``blend`` in (0, 1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,6 +194,11 @@ class _Entries:
     mag: np.ndarray  # |direction component|
     column: np.ndarray
     pointer: np.ndarray  # entries of column j: pointer[j]:pointer[j + 1]
+    # selections by set of active columns: an animation keeps the same FAPs set
+    # for many frames, so most frames reuse one (a cache; results do not change)
+    _chosen: dict[bytes, tuple[np.ndarray, ...]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
 
     @classmethod
     def of(
@@ -197,19 +212,64 @@ class _Entries:
         """(rows, coef, mag, column) of the entries of the active columns."""
         if active.size == self.pointer.size - 1:
             return self.rows, self.coef, self.mag, self.column
-        index = np.concatenate(
-            [np.arange(self.pointer[j], self.pointer[j + 1]) for j in active]
-        )
-        return self.rows[index], self.coef[index], self.mag[index], self.column[index]
+        key = active.tobytes()
+        chosen = self._chosen.get(key)
+        if chosen is None:
+            index = np.concatenate(
+                [np.arange(self.pointer[j], self.pointer[j + 1]) for j in active]
+            )
+            chosen = (self.rows[index], self.coef[index], self.mag[index], self.column[index])
+            if len(self._chosen) >= SELECTION_CACHE:
+                self._chosen.clear()
+            self._chosen[key] = chosen
+        return chosen[0], chosen[1], chosen[2], chosen[3]
+
+
+Matrix3 = tuple[float, float, float, float, float, float, float, float, float]
+IDENTITY3: Matrix3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def _rotation(axis: tuple[float, float, float], angle: float) -> Matrix3:
+    """Row-major 3x3 rotation by ``angle`` radians about a unit axis (Rodrigues).
+
+    Plain floats: a few per frame, where numpy's per-call cost would dominate.
+    """
+    x, y, z = axis
+    c, s = math.cos(angle), math.sin(angle)
+    t = 1.0 - c
+    return (
+        c + t * x * x, t * x * y - s * z, t * x * z + s * y,
+        t * x * y + s * z, c + t * y * y, t * y * z - s * x,
+        t * x * z - s * y, t * y * z + s * x, c + t * z * z,
+    )
+
+
+def _mul(a: Matrix3, b: Matrix3) -> Matrix3:
+    return (
+        a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
+        a[0] * b[1] + a[1] * b[4] + a[2] * b[7],
+        a[0] * b[2] + a[1] * b[5] + a[2] * b[8],
+        a[3] * b[0] + a[4] * b[3] + a[5] * b[6],
+        a[3] * b[1] + a[4] * b[4] + a[5] * b[7],
+        a[3] * b[2] + a[4] * b[5] + a[5] * b[8],
+        a[6] * b[0] + a[7] * b[3] + a[8] * b[6],
+        a[6] * b[1] + a[7] * b[4] + a[8] * b[7],
+        a[6] * b[2] + a[7] * b[5] + a[8] * b[8],
+    )
+
+
+def _apply3(a: Matrix3, v: tuple[float, float, float]) -> tuple[float, float, float]:
+    return (
+        a[0] * v[0] + a[1] * v[1] + a[2] * v[2],
+        a[3] * v[0] + a[4] * v[1] + a[5] * v[2],
+        a[6] * v[0] + a[7] * v[1] + a[8] * v[2],
+    )
 
 
 def rotation_matrix(axis: np.ndarray, angle: float) -> np.ndarray:
     """Right-handed rotation by ``angle`` radians about the unit vector ``axis``."""
-    x, y, z = axis
-    c, s = np.cos(angle), np.sin(angle)
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    matrix: np.ndarray = np.eye(3) + s * k + (1.0 - c) * (k @ k)
-    return matrix
+    x, y, z = (float(c) for c in axis)
+    return np.asarray(_rotation((x, y, z), angle)).reshape(3, 3)
 
 
 class FaceRig:
@@ -481,21 +541,28 @@ class FaceRig:
             if groups and transform.key == last_key:
                 group = groups[-1]
                 groups[-1] = _TransformGroup(
-                    group.indices, group.weights, (*group.members, transform)
+                    group.indices, (*group.members, transform), group.blend, group.weights
                 )
                 continue
+            blend = blend_weights = None
+            if weights is not None:
+                # split a faded motion: rigid where the weight is 1, blended where
+                # it is between, nothing where it is 0
+                partial = (weights > 0.0) & (weights < 1.0)
+                blend = vertices[partial]
+                blend_weights = weights[partial].astype(np.float32)[:, None]
+                vertices = vertices[weights >= 1.0]
             indices: np.ndarray | slice | None = vertices
             if vertices.size == n:
                 indices = None
-            elif int(vertices[-1]) - int(vertices[0]) + 1 == vertices.size:
+            elif vertices.size and int(vertices[-1]) - int(vertices[0]) + 1 == vertices.size:
                 # a contiguous part: a view instead of a gather and a scatter
                 indices = slice(int(vertices[0]), int(vertices[-1]) + 1)
-            w = None if weights is None else weights.astype(np.float32)[:, None]
-            groups.append(_TransformGroup(indices, w, (transform,)))
+            groups.append(_TransformGroup(indices, (transform,), blend, blend_weights))
             last_key = transform.key
         # the trailing rigid motions of every vertex (the head) form the pose
         split = len(groups)
-        while split > 0 and groups[split - 1].indices is None and groups[split - 1].weights is None:
+        while split > 0 and groups[split - 1].indices is None and groups[split - 1].blend is None:
             split -= 1
         self._groups = tuple(groups[:split])
         self._pose_groups = tuple(groups[split:])
@@ -575,38 +642,43 @@ class FaceRig:
         self, group: _TransformGroup, values: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, bool]:
         """The group's motion this frame: x -> matrix @ x + offset; moved=False if none."""
-        matrix = np.eye(3)
-        offset = np.zeros(3)
+        matrix = IDENTITY3
+        offset = (0.0, 0.0, 0.0)
         moved = False
         for member in group.members:
-            amount = values[member.fap_index] * member.unit
+            amount = float(values[member.fap_index]) * member.unit
             if amount == 0.0:
                 continue
             moved = True
+            ax, ay, az = member.axis_tuple
             if member.kind == "translation":
-                offset = offset + amount * member.axis
+                offset = (offset[0] + amount * ax, offset[1] + amount * ay,
+                          offset[2] + amount * az)
             else:
-                rot = rotation_matrix(member.axis, amount)
-                matrix = rot @ matrix
-                offset = rot @ offset + member.pivot - rot @ member.pivot
-        return matrix, offset, moved
+                rot = _rotation(member.axis_tuple, amount)
+                matrix = _mul(rot, matrix)
+                # x -> rot (x - pivot) + pivot, after the motion so far
+                px, py, pz = member.pivot_tuple
+                turned = _apply3(rot, (offset[0] - px, offset[1] - py, offset[2] - pz))
+                offset = (turned[0] + px, turned[1] + py, turned[2] + pz)
+        return np.asarray(matrix).reshape(3, 3), np.asarray(offset), moved
 
     def _apply(self, group: _TransformGroup, values: np.ndarray, out: np.ndarray) -> np.ndarray:
         matrix, offset, moved = self._affine(group, values)
         if not moved:
             return out
+        if group.blend is not None and group.weights is not None and group.blend.size:
+            points = out[group.blend]
+            target = _transformed(points, matrix)
+            _translate(target, offset)
+            out[group.blend] = points + group.weights * (target - points)
         if group.indices is None:
             target = _transformed(out, matrix)
             _translate(target, offset)
-            if group.weights is None:
-                return target
-            out += group.weights * (target - out)
-            return out
+            return target
         points = out[group.indices]
         target = _transformed(points, matrix)
         _translate(target, offset)
-        if group.weights is not None:
-            target = points + group.weights * (target - points)
         out[group.indices] = target
         return out
 

@@ -158,6 +158,10 @@ class TransformDeformer:
     falloff: float = 0.0
 
 
+#: Seed 002's name for a transform-node animation table.
+FaceDefTransform = TransformDeformer
+
+
 @dataclass(frozen=True, slots=True)
 class DilateDeformer:
     """Pupil dilation (FAPs 29, 30): the pupil's rim grows by FAP x IRISD x scale.

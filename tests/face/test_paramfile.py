@@ -174,3 +174,12 @@ def test_a_one_element_name_array_is_read_as_the_name(tmp_path: Path):
     arrays["name"] = np.array(["someone"])
     np.savez(tmp_path / "head.npz", **arrays)
     assert load_face(tmp_path / "head").name == "someone"
+
+
+def test_the_default_face_parameter_file_round_trips():
+    default = pytest.importorskip("realizer.face.default")
+    path = default.default_face_path().with_suffix(".xml")
+    if not path.exists():
+        pytest.skip(f"no default face at {path}")
+    original = path.read_bytes()
+    assert c14n(serialise_parameters(parse_parameters(original))) == c14n(original)
