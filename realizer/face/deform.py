@@ -181,8 +181,26 @@ class _Transform:
 class _TransformGroup:
     indices: np.ndarray | slice | None  # moved rigidly; None = every vertex; slice = range
     members: tuple[_Transform, ...]
+    flat: np.ndarray | None = None  # _flat(indices) when indices is an array
+    blend_flat: np.ndarray | None = None
     blend: np.ndarray | None = None  # vertices moved part way (a neck below 7.1)
     weights: np.ndarray | None = None  # (k, 1) float32 weights of ``blend`` in (0, 1)
+
+
+def _flat(rows: np.ndarray) -> np.ndarray:
+    """Indices into ``vertices.reshape(-1)`` of whole rows: writing (k, 3) rows
+    through a flat index is ~3x faster than ``out[rows] = ...`` on (n, 3)."""
+    flat: np.ndarray = (rows.astype(np.intp)[:, None] * 3 + np.arange(3)).reshape(-1)
+    return flat
+
+
+def _gather(out: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    taken: np.ndarray = np.take(out, rows, axis=0)  # ~4x faster than out[rows]
+    return taken
+
+
+def _scatter(out: np.ndarray, flat_rows: np.ndarray, values: np.ndarray) -> None:
+    out.reshape(-1)[flat_rows] = values.reshape(-1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -541,7 +559,8 @@ class FaceRig:
             if groups and transform.key == last_key:
                 group = groups[-1]
                 groups[-1] = _TransformGroup(
-                    group.indices, (*group.members, transform), group.blend, group.weights
+                    group.indices, (*group.members, transform), group.flat, group.blend_flat,
+                    group.blend, group.weights,
                 )
                 continue
             blend = blend_weights = None
@@ -558,7 +577,12 @@ class FaceRig:
             elif vertices.size and int(vertices[-1]) - int(vertices[0]) + 1 == vertices.size:
                 # a contiguous part: a view instead of a gather and a scatter
                 indices = slice(int(vertices[0]), int(vertices[-1]) + 1)
-            groups.append(_TransformGroup(indices, (transform,), blend, blend_weights))
+            groups.append(_TransformGroup(
+                indices, (transform,),
+                _flat(vertices) if isinstance(indices, np.ndarray) else None,
+                None if blend is None else _flat(blend),
+                blend, blend_weights,
+            ))
             last_key = transform.key
         # the trailing rigid motions of every vertex (the head) form the pose
         split = len(groups)
@@ -667,19 +691,25 @@ class FaceRig:
         matrix, offset, moved = self._affine(group, values)
         if not moved:
             return out
-        if group.blend is not None and group.weights is not None and group.blend.size:
-            points = out[group.blend]
+        if group.blend is not None and group.blend_flat is not None and group.blend.size:
+            assert group.weights is not None
+            points = _gather(out, group.blend)
             target = _transformed(points, matrix)
             _translate(target, offset)
-            out[group.blend] = points + group.weights * (target - points)
+            _scatter(out, group.blend_flat, points + group.weights * (target - points))
         if group.indices is None:
             target = _transformed(out, matrix)
             _translate(target, offset)
             return target
-        points = out[group.indices]
-        target = _transformed(points, matrix)
+        if isinstance(group.indices, slice):
+            part = out[group.indices]  # a view: transform in place
+            part[...] = _transformed(part, matrix)
+            _translate(part, offset)
+            return out
+        assert group.flat is not None
+        target = _transformed(_gather(out, group.indices), matrix)
         _translate(target, offset)
-        out[group.indices] = target
+        _scatter(out, group.flat, target)
         return out
 
 
