@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from realizer.face.deform import deform
 from realizer.face.model import EaseDeformer
@@ -130,3 +132,28 @@ def test_our_rule_raises_all_three_points_fully_and_keeps_the_lip_flat():
     assert down[10:31].min() > 98.0
     # and never more than the FAPs ask for (a plain sum would bulge to ~190 at 15 mm)
     assert down.max() <= 100.0 + 1e-3
+
+
+# -- properties over random values -----------------------------------------------------
+
+AMOUNTS = st.floats(-500.0, 500.0, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(a4=AMOUNTS, a8=AMOUNTS, a6=AMOUNTS)
+def test_no_vertex_moves_further_than_the_largest_fap_reaching_it(a4, a8, a6):
+    moved = offsets({4: a4, 8: a8, 6: a6})
+    reach4, reach8 = influence(0.0) > 0, influence(0.006) > 0
+    # y: FAPs 4 and 8 push along -y by their value
+    largest_y = np.maximum(np.abs(a4) * reach4, np.abs(a8) * reach8)
+    assert (np.abs(moved[:, 1]) <= largest_y + 1e-3).all()
+    # x: FAP 6 alone, exactly linear
+    assert moved[:, 0] == pytest.approx(a6 * influence(0.0), abs=1e-3)
+    # negating every value mirrors the result
+    assert offsets({4: -a4, 8: -a8, 6: -a6}) == pytest.approx(-moved, abs=1e-3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(value=AMOUNTS)
+def test_a_single_fap_is_exact_for_any_value(value):
+    assert -offsets({8: value})[:, 1] == pytest.approx(value * influence(0.006), abs=1e-3)
