@@ -652,14 +652,13 @@ class FaceRig:
         value = amount[col]
         push = coef * value  # signed contribution of each entry, metres
         peak = mag * np.abs(value)  # what the entry's FAP alone would give at weight 1
-        result = np.zeros(rows)
-        for sign in (1.0, -1.0):
-            chosen = push * sign > 0
-            where = local[chosen]
-            sums = np.bincount(where, weights=push[chosen] * sign, minlength=rows)
-            peaks = np.zeros(rows)
-            np.maximum.at(peaks, where, peak[chosen])
-            result += sign * np.minimum(sums, peaks)
+        # bucket 2r: what pushes row r up, 2r + 1: what pushes it down
+        bucket = local * 2 + (push < 0)
+        sums = np.bincount(bucket, weights=np.abs(push), minlength=2 * rows)
+        peaks = np.zeros(2 * rows)
+        np.maximum.at(peaks, bucket, peak)
+        capped = np.minimum(sums, peaks).reshape(rows, 2)
+        result: np.ndarray = capped[:, 0] - capped[:, 1]
         return result
 
     def _affine(
