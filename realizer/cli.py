@@ -17,9 +17,15 @@ from realizer import __version__
 
 #: Modules of :mod:`realizer.commands`, in the order ``--help`` lists them.
 COMMANDS: tuple[str, ...] = (
+    "parse",
+    "bench",
+    "facs",
+    "emotion",
     "fap_sheet",
     "face",
-
+    "serve",
+    "send",
+    "render",
 )
 
 

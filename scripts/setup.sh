@@ -14,6 +14,7 @@ cd "$(dirname "$0")/.."
 APT_PACKAGES=(
     libosmesa6 libgl1 libegl1 libgl1-mesa-dri libglu1-mesa
     ffmpeg
+    chromium chromium-driver
 )
 
 if [ "${REALIZER_SKIP_APT:-0}" != "1" ] && command -v apt-get >/dev/null 2>&1; then

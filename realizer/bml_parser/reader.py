@@ -1,0 +1,691 @@
+"""Recursive-descent BML reader over a hardened lxml element tree.
+
+Seed 000 chapter 3 describes the parser this one grows from: a recursive
+descent whose object tree reconstructs the document. Here lxml builds the
+element tree (fast, with line numbers) under strict settings, and one
+function per grammar rule turns elements into the typed, immutable nodes of
+:mod:`realizer.bml_parser.tree`:
+
+    block       := <bml> (behaviour | required | constraint | other)*
+    required    := <required> (behaviour | constraint | other)*
+    constraint  := <constraint> (synchronize | before | after | other)*
+    relation    := <synchronize|before|after ref?> <sync ref>*
+    behaviour   := <type id sync-attrs...> (description | text | other)*
+    text        := <text> (words | <sync id>)*
+
+Safety: no DTD is loaded, no entity is expanded, nothing is fetched from the
+network, a document larger than :attr:`Limits.max_bytes` is refused before
+parsing, and any DOCTYPE is refused (entity declarations are how the
+"billion laughs" and external-entity attacks work).
+"""
+
+from __future__ import annotations
+
+import gc
+import itertools
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from lxml import etree
+
+from realizer.bml_parser.errors import (
+    BmlError,
+    BmlSecurityError,
+    BmlSyntaxError,
+    BmlWarning,
+    SyncRefError,
+    WarningType,
+)
+from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement
+from realizer.bml_parser.syncref import SyncRef, parse_sync_ref
+from realizer.bml_parser.tree import (
+    Behaviour,
+    Block,
+    Constraint,
+    Description,
+    Relation,
+    Required,
+    SpeechText,
+    TextSync,
+)
+from realizer.bml_parser.vocabulary import BML_NS, DIALECTS, DRAFT_NS, BehaviourSpec, vocabulary
+
+COMPOSITIONS = ("MERGE", "APPEND", "REPLACE")
+_RELATION_KINDS = ("synchronize", "before", "after")
+_CHECKED_TYPES = frozenset({"fap", "emotion", "head"})
+# Clark-name prefixes ("{ns" before the "}") of the namespaces whose
+# <description> and <text> children the grammar reads.
+_CORE_PREFIXES = frozenset({"{" + BML_NS, "{" + DRAFT_NS, ""})
+_FAP_VALUE_RE = re.compile(r"\s*([0-9]+)\s*[=:]\s*([+-]?[0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*")
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    """Named limits on one BML document."""
+
+    max_bytes: int = 4 * 1024 * 1024
+    max_behaviours: int = 20_000
+    max_depth: int = 64
+
+
+DEFAULT_LIMITS = Limits()
+
+
+@dataclass(frozen=True, slots=True)
+class ParseResult:
+    """A parsed block with what the parser had to say about it.
+
+    ``dropped`` names behaviours that stay in the tree (so the document
+    serialises back) but that the realizer must not run, each with a warning
+    saying why (an impossible timing, as the BML 1.0 standard asks).
+    """
+
+    block: Block
+    warnings: tuple[BmlWarning, ...] = ()
+    dropped: frozenset[str] = frozenset()
+
+
+def _make_parser(encoding: str | None) -> etree.XMLParser:
+    return etree.XMLParser(
+        resolve_entities=False,
+        no_network=True,
+        load_dtd=False,
+        dtd_validation=False,
+        huge_tree=False,
+        remove_comments=False,
+        remove_pis=False,
+        strip_cdata=True,
+        encoding=encoding,
+    )
+
+
+_BYTES_PARSER = _make_parser(None)
+_TEXT_PARSER = _make_parser("utf-8")  # str input is encoded as UTF-8 whatever it declares
+
+
+def _is_number(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
+
+
+class _Reader:
+    """One parse: the source for error positions, and the warnings so far."""
+
+    def __init__(self, data: bytes, source: str, limits: Limits) -> None:
+        self.data = data
+        self.source = source
+        self.limits = limits
+        self.vocab = vocabulary()
+        self.warnings: list[BmlWarning] = []
+        self.dropped: set[str] = set()
+        self.ids: set[str] = set()
+        self.block_id = ""
+        self.behaviour_count = 0
+        self._lines: list[str] | None = None
+        self.flat_namespaces = False
+
+    # -- positions and reports -------------------------------------------
+
+    def column(self, line: int, needle: str) -> int:
+        """The 1-based column of ``needle`` at or after ``line``, found on demand."""
+        if line <= 0:
+            return 0
+        if self._lines is None:
+            self._lines = self.data.decode("utf-8", "replace").splitlines()
+        for number in range(line - 1, min(line + 20, len(self._lines))):
+            found = self._lines[number].find(needle)
+            if found >= 0:
+                return found + 1 if number == line - 1 else 0
+        return 0
+
+    def error(
+        self,
+        cls: type[BmlError],
+        message: str,
+        element: Any,
+        needle: str = "<",
+        warning_type: WarningType = WarningType.PARSING_FAILURE,
+    ) -> BmlError:
+        line = int(getattr(element, "sourceline", 0) or 0)
+        return cls(
+            message,
+            line=line,
+            column=self.column(line, needle),
+            source=self.source,
+            warning_type=warning_type,
+        )
+
+    def warn(
+        self, kind: WarningType, message: str, element: Any, target: str = "", needle: str = "<"
+    ) -> None:
+        line = int(getattr(element, "sourceline", 0) or 0)
+        self.warnings.append(
+            BmlWarning(
+                kind,
+                message,
+                id=f"{self.block_id}:{target}" if target else self.block_id,
+                line=line,
+                column=self.column(line, needle),
+            )
+        )
+
+    def sync_ref(self, raw: str, element: Any, attribute: str, aliases: Any = ()) -> SyncRef:
+        try:
+            return parse_sync_ref(raw, sync_aliases=aliases)
+        except SyncRefError as exc:
+            raise self.error(SyncRefError, exc.message, element, f'{attribute}="') from None
+
+    # -- the XML layer -----------------------------------------------------
+
+    def common(
+        self,
+        el: Any,
+        parent_nsmap: dict[str | None, str],
+        attributes: tuple[tuple[str, str], ...] | None = None,
+    ) -> tuple[dict[str, Any], dict[str | None, str]]:
+        """The lossless fields every element keeps (children filled by the caller),
+        and the namespaces in scope inside it."""
+        if self.flat_namespaces and parent_nsmap:
+            nsmap = parent_nsmap
+            decls: tuple[tuple[str | None, str], ...] = ()
+        else:
+            nsmap = el.nsmap
+            decls = tuple(
+                (prefix, uri) for prefix, uri in nsmap.items() if parent_nsmap.get(prefix) != uri
+            )
+        return {
+            "tag": el.tag,
+            "attributes": tuple(el.attrib.items()) if attributes is None else attributes,
+            "text": el.text or "",
+            "tail": el.tail or "",
+            "prefix": el.prefix,
+            "nsdecls": decls,
+            "line": el.sourceline or 0,
+        }, nsmap
+
+    def other(self, node: Any, nsmap: dict[str | None, str], depth: int) -> Node:
+        """Any node kept as written: comments, PIs and elements the grammar does not name."""
+        if isinstance(node, etree._Comment):
+            return Comment(node.text or "", node.tail or "")
+        if isinstance(node, etree._ProcessingInstruction):
+            return ProcessingInstruction(str(node.target), node.text or "", node.tail or "")
+        if isinstance(node, etree._Entity):
+            raise self.error(BmlSecurityError, "entity references are not allowed in BML", node)
+        if depth > self.limits.max_depth:
+            raise self.error(
+                BmlSecurityError, f"elements nested deeper than {self.limits.max_depth}", node
+            )
+        fields, inner = self.common(node, nsmap)
+        fields["children"] = tuple(self.other(child, inner, depth + 1) for child in node)
+        return XmlElement(**fields)
+
+    # -- the grammar ---------------------------------------------------------
+
+    def block(self, root: Any) -> Block:
+        namespace = etree.QName(root).namespace or ""
+        if (
+            etree.QName(root).localname != "bml"
+            or namespace not in DIALECTS
+            or (DIALECTS[namespace] not in ("bml", "draft"))
+        ):
+            raise self.error(
+                BmlSyntaxError,
+                f"the root element must be <bml> in the BML 1.0 namespace {BML_NS}, "
+                f"not {root.tag!r}",
+                root,
+            )
+        dialect = DIALECTS[namespace]
+        block_id = root.get("id")
+        if not block_id or not block_id.strip():
+            raise self.error(BmlSyntaxError, "<bml> has no id attribute", root)
+        self.block_id = block_id
+        composition = root.get("composition", "MERGE")
+        if composition.upper() not in COMPOSITIONS:
+            raise self.error(
+                BmlSyntaxError,
+                f"composition {composition!r} is not one of {', '.join(COMPOSITIONS)}",
+                root,
+                'composition="',
+            )
+        fields, nsmap = self.common(root, {})
+        # Every namespace declaration needs the literal "xmlns" in the source
+        # (entities are refused), so when all of them sit on the root, no
+        # element below declares any and nsmap need not be asked again.
+        self.flat_namespaces = self.data.count(b"xmlns") == len(nsmap)
+        behaviours: list[Behaviour] = []
+        constraints: list[Constraint] = []
+        fields["children"] = tuple(
+            self.block_child(child, nsmap, False, behaviours, constraints) for child in root
+        )
+        prolog = tuple(
+            self.other(sibling, {}, 0)
+            for sibling in reversed(list(root.itersiblings(preceding=True)))
+        )
+        epilog = tuple(self.other(sibling, {}, 0) for sibling in root.itersiblings())
+        fields["tail"] = ""
+        return Block(
+            **fields,
+            id=block_id,
+            character_id=root.get("characterId"),
+            composition=composition.upper(),
+            dialect=dialect,
+            behaviours=tuple(behaviours),
+            constraints=tuple(constraints),
+            prolog=prolog,  # type: ignore[arg-type]
+            epilog=epilog,  # type: ignore[arg-type]
+        )
+
+    def block_child(
+        self,
+        el: Any,
+        nsmap: dict[str | None, str],
+        required: bool,
+        behaviours: list[Behaviour],
+        constraints: list[Constraint],
+    ) -> Node:
+        if not isinstance(el.tag, str):
+            return self.other(el, nsmap, 1)
+        tag: str = el.tag
+        namespace, _, local = tag[1:].partition("}") if tag[0] == "{" else ("", "", tag)
+        dialect = DIALECTS.get(namespace)
+        if dialect in ("bml", "draft") and local == "required":
+            fields, inner = self.common(el, nsmap)
+            fields["children"] = tuple(
+                self.block_child(child, inner, True, behaviours, constraints) for child in el
+            )
+            return Required(**fields)
+        if dialect in ("bml", "draft") and local == "constraint":
+            constraint = self.constraint(el, nsmap, required)
+            constraints.append(constraint)
+            return constraint
+        spec = self.vocab.spec(namespace, local)
+        if spec is not None:
+            behaviour = self.behaviour(el, nsmap, spec, required)
+            if isinstance(behaviour, Behaviour):
+                behaviours.append(behaviour)
+            return behaviour
+        if dialect in ("bml", "draft"):
+            self.warn(
+                WarningType.BEHAVIOR_TYPE_NOT_SUPPORTED,
+                f"<{local}> is not a BML 1.0 behaviour; it is ignored",
+                el,
+                el.get("id", ""),
+            )
+        else:
+            self.warn(
+                WarningType.CUSTOM_BEHAVIOUR_NOT_SUPPORTED,
+                f"custom behaviour {tag} is not supported; it is ignored",
+                el,
+                el.get("id", ""),
+            )
+        return self.other(el, nsmap, 1)
+
+    def behaviour(
+        self, el: Any, nsmap: dict[str | None, str], spec: BehaviourSpec, required: bool
+    ) -> Node:
+        """One behaviour; an uncreatable one is kept as plain XML with a warning."""
+        behaviour_id = el.get("id")
+        local = spec.element
+        if not behaviour_id or not behaviour_id.strip():
+            self.warn(
+                WarningType.CANNOT_CREATE_BEHAVIOR,
+                f"<{local}> has no id attribute; it is ignored",
+                el,
+            )
+            return self.other(el, nsmap, 1)
+        if behaviour_id in self.ids:
+            raise self.error(
+                BmlSyntaxError,
+                f"id {behaviour_id!r} is used twice in block {self.block_id!r}",
+                el,
+                f'id="{behaviour_id}"',
+            )
+        self.ids.add(behaviour_id)
+        self.behaviour_count += 1
+        if self.behaviour_count > self.limits.max_behaviours:
+            raise self.error(
+                BmlSecurityError,
+                f"more than {self.limits.max_behaviours} behaviours in one block",
+                el,
+            )
+
+        aliases = spec.sync_aliases
+        sync_attributes = spec.sync_attributes
+        understood = spec.attributes
+        params: list[tuple[str, str]] = []
+        sync_refs: list[tuple[str, SyncRef]] = []
+        problem = ""
+        attributes = tuple(el.attrib.items())
+        for name, value in attributes:
+            sync_name = sync_attributes.get(name)
+            if sync_name is not None:
+                sync_refs.append((sync_name, self.sync_ref(value, el, name, aliases)))
+            elif name in understood:
+                if name in spec.numeric and not _is_number(value):
+                    problem = f"attribute {name}={value!r} of {behaviour_id!r} is not a number"
+                params.append((name, value))
+            elif name == "id":
+                continue
+            elif name[0] == "{":
+                self.warn(
+                    WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
+                    f"custom attribute {name} on {behaviour_id!r} is not supported; it is ignored",
+                    el,
+                    behaviour_id,
+                    needle=name.rpartition("}")[2],
+                )
+            else:
+                self.warn(
+                    WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
+                    f"attribute {name!r} is not understood on <{local}> {behaviour_id!r}; "
+                    "it is ignored",
+                    el,
+                    behaviour_id,
+                    needle=f"{name}=",
+                )
+        if spec.required:
+            present = {name for name, _ in params}
+            missing = [name for name in spec.required if name not in present]
+            if missing:
+                problem = f"<{local}> {behaviour_id!r} lacks the attribute {missing[0]!r}"
+        behaviour_type = spec.type
+        if spec.dialect == "draft":
+            behaviour_type, params = self.translate(spec, params)
+        if not problem and behaviour_type in _CHECKED_TYPES:
+            problem = self.check_params(behaviour_type, params, behaviour_id)
+
+        fields, inner = self.common(el, nsmap, attributes)
+        children: list[Node] = []
+        descriptions: list[Description] = []
+        speech: SpeechText | None = None
+        for child in el:
+            tag = child.tag
+            if isinstance(tag, str) and tag.rpartition("}")[0] in _CORE_PREFIXES:
+                local_child = tag.rpartition("}")[2]
+                if local_child == "description":
+                    description = self.description(child, inner)
+                    descriptions.append(description)
+                    children.append(description)
+                    continue
+                if local_child == "text" and spec.type == "speech" and speech is None:
+                    speech = self.speech_text(child, inner, behaviour_id, aliases)
+                    children.append(speech)
+                    continue
+            children.append(self.other(child, inner, 2))
+        fields["children"] = tuple(children)
+
+        if problem:
+            self.warn(
+                WarningType.CANNOT_CREATE_BEHAVIOR, problem + "; it is ignored", el, behaviour_id
+            )
+            return XmlElement(**fields)
+
+        syncs = spec.syncs
+        if speech is not None or (behaviour_type == "head" and params):
+            syncs = self.sync_points(spec, params, speech)
+        if len(sync_refs) > 1:
+            self.check_absolute_order(syncs, sync_refs, el, behaviour_id)
+        return Behaviour(
+            **fields,
+            id=behaviour_id,
+            type=behaviour_type,
+            dialect=spec.dialect,
+            syncs=syncs,
+            sync_refs=tuple(sync_refs),
+            params=tuple(params),
+            required=required,
+            speech=speech,
+            descriptions=tuple(descriptions),
+        )
+
+    @staticmethod
+    def translate(
+        spec: BehaviourSpec, params: list[tuple[str, str]]
+    ) -> tuple[str, list[tuple[str, str]]]:
+        """Map a draft behaviour onto the BML 1.0 type and attribute names."""
+        if spec.dialect != "draft":
+            return spec.type, params
+        values = dict(params)
+        if spec.element == "face":
+            if values.get("type", "").upper() == "FACS":
+                kept = [(k, v) for k, v in params if k in ("au", "side", "amount")]
+                return "faceFacs", kept
+            kept = [(k, v) for k, v in params if k != "type"]
+            return "faceLexeme", [("lexeme", values["type"]), *kept]
+        if spec.element in ("head", "gesture") and "type" in values and "lexeme" not in values:
+            renamed = [("lexeme", v) if k == "type" else (k, v) for k, v in params]
+            renamed = [("repetition", v) if k == "repeats" else (k, v) for k, v in renamed]
+            return spec.type, renamed
+        return spec.type, params
+
+    @staticmethod
+    def check_params(behaviour_type: str, params: list[tuple[str, str]], behaviour_id: str) -> str:
+        """Checks of our extension behaviours; returns a problem or ``""``."""
+        values = dict(params)
+        if behaviour_type == "fap":
+            pairs = values["values"].replace(",", " ").split()
+            if not pairs:
+                return f"fap behaviour {behaviour_id!r} has no values"
+            for pair in pairs:
+                match = _FAP_VALUE_RE.fullmatch(pair)
+                if match is None or not 1 <= int(match.group(1)) <= 68:
+                    return (
+                        f"fap behaviour {behaviour_id!r}: {pair!r} is not FAP=value "
+                        "with a FAP number from 1 to 68"
+                    )
+        elif behaviour_type == "emotion":
+            if "word" not in values and not ("angle" in values and "activation" in values):
+                return (
+                    f"emotion behaviour {behaviour_id!r} needs a word, or an angle and an "
+                    "activation"
+                )
+        elif behaviour_type == "head" and "repetition" in values:
+            repetition = float(values["repetition"])
+            if repetition < 1 or repetition != int(repetition):
+                return f"head {behaviour_id!r}: repetition must be a whole number of at least 1"
+        return ""
+
+    @staticmethod
+    def sync_points(
+        spec: BehaviourSpec, params: list[tuple[str, str]], speech: SpeechText | None
+    ) -> tuple[str, ...]:
+        syncs = spec.syncs
+        if spec.type == "head":
+            repetition = int(float(dict(params).get("repetition", "1")))
+            if repetition > 1:
+                index = syncs.index("stroke") + 1
+                extra = tuple(f"stroke:{n}" for n in range(2, repetition + 1))
+                syncs = syncs[:index] + extra + syncs[index:]
+        if speech is not None:
+            syncs = (syncs[0], *speech.sync_ids, *syncs[1:])
+        return syncs
+
+    def check_absolute_order(
+        self,
+        syncs: tuple[str, ...],
+        sync_refs: list[tuple[str, SyncRef]],
+        el: Any,
+        behaviour_id: str,
+    ) -> None:
+        """BML 1.0: a behaviour whose own absolute times contradict its sync order is dropped."""
+        timed = sorted(
+            (syncs.index(name), ref.offset, name) for name, ref in sync_refs if ref.is_time
+        )
+        for (_, earlier, first), (_, later, second) in itertools.pairwise(timed):
+            if later < earlier:
+                self.dropped.add(behaviour_id)
+                self.warn(
+                    WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                    f"{behaviour_id!r} has {second}={later:g} before {first}={earlier:g}; "
+                    "the behaviour is removed",
+                    el,
+                    behaviour_id,
+                )
+                return
+
+    def description(self, el: Any, nsmap: dict[str | None, str]) -> Description:
+        fields, inner = self.common(el, nsmap)
+        fields["children"] = tuple(self.other(child, inner, 3) for child in el)
+        priority_text = el.get("priority", "0")
+        try:
+            priority = int(priority_text)
+        except ValueError:
+            raise self.error(
+                BmlSyntaxError,
+                f"description priority {priority_text!r} is not an integer",
+                el,
+                'priority="',
+            ) from None
+        return Description(**fields, priority=priority, type=el.get("type", ""))
+
+    def speech_text(
+        self, el: Any, nsmap: dict[str | None, str], behaviour_id: str, aliases: Any
+    ) -> SpeechText:
+        fields, inner = self.common(el, nsmap)
+        children: list[Node] = []
+        runs: list[str | TextSync] = [el.text or ""]
+        seen: set[str] = set()
+        for child in el:
+            if isinstance(child.tag, str) and etree.QName(child).localname == "sync":
+                sync_id = child.get("id")
+                if not sync_id:
+                    raise self.error(
+                        BmlSyntaxError, f"<sync> in the text of {behaviour_id!r} has no id", child
+                    )
+                if sync_id in seen or sync_id in ("start", "end"):
+                    raise self.error(
+                        BmlSyntaxError,
+                        f"sync id {sync_id!r} is used twice in speech {behaviour_id!r}",
+                        child,
+                        f'"{sync_id}"',
+                    )
+                seen.add(sync_id)
+                ref_text = child.get("ref")
+                ref = self.sync_ref(ref_text, child, "ref", aliases) if ref_text else None
+                sync_fields, sync_inner = self.common(child, inner)
+                sync_fields["children"] = tuple(self.other(c, sync_inner, 4) for c in child)
+                marker = TextSync(**sync_fields, id=sync_id, ref=ref)
+                children.append(marker)
+                runs.append(marker)
+            else:
+                node = self.other(child, inner, 4)
+                children.append(node)
+                if isinstance(node, XmlElement):
+                    runs.append("".join(child.itertext()))
+            runs.append(child.tail or "")
+        fields["children"] = tuple(children)
+        merged: list[str | TextSync] = []
+        for run in runs:
+            if isinstance(run, str) and merged and isinstance(merged[-1], str):
+                merged[-1] += run
+            elif run != "":
+                merged.append(run)
+        return SpeechText(**fields, runs=tuple(merged))
+
+    def constraint(self, el: Any, nsmap: dict[str | None, str], required: bool) -> Constraint:
+        fields, inner = self.common(el, nsmap)
+        children: list[Node] = []
+        relations: list[Relation] = []
+        for child in el:
+            if (
+                isinstance(child.tag, str)
+                and etree.QName(child).localname in _RELATION_KINDS
+                and (DIALECTS.get(etree.QName(child).namespace or "") in ("bml", "draft"))
+            ):
+                relation = self.relation(child, inner)
+                relations.append(relation)
+                children.append(relation)
+            else:
+                children.append(self.other(child, inner, 2))
+        fields["children"] = tuple(children)
+        return Constraint(
+            **fields, id=el.get("id", ""), required=required, relations=tuple(relations)
+        )
+
+    def relation(self, el: Any, nsmap: dict[str | None, str]) -> Relation:
+        kind = etree.QName(el).localname
+        fields, inner = self.common(el, nsmap)
+        ref_text = el.get("ref")
+        if kind != "synchronize" and ref_text is None:
+            raise self.error(BmlSyntaxError, f"<{kind}> needs a ref attribute", el)
+        ref = self.sync_ref(ref_text, el, "ref") if ref_text is not None else None
+        children: list[Node] = []
+        syncs: list[SyncRef] = []
+        for child in el:
+            if isinstance(child.tag, str) and etree.QName(child).localname == "sync":
+                sync_text = child.get("ref")
+                if sync_text is None:
+                    raise self.error(BmlSyntaxError, f"<sync> in <{kind}> needs a ref", child)
+                syncs.append(self.sync_ref(sync_text, child, "ref"))
+            children.append(self.other(child, inner, 3))
+        fields["children"] = tuple(children)
+        if len(syncs) + (ref is not None) < 2 and kind == "synchronize":
+            self.warn(
+                WarningType.PARSING_FAILURE,
+                "<synchronize> with fewer than two sync points constrains nothing",
+                el,
+            )
+        return Relation(**fields, kind=kind, ref=ref, syncs=tuple(syncs))
+
+
+_DOCTYPE_RE = re.compile(rb"^(?:\xef\xbb\xbf)?(?:\s+|<\?.*?\?>|<!--.*?-->)*<!DOCTYPE", re.S)
+_DOCTYPE_MESSAGE = (
+    "DOCTYPE declarations are not allowed in BML (entity expansion and external DTDs are refused)"
+)
+
+
+def _to_bytes(data: str | bytes) -> tuple[bytes, etree.XMLParser]:
+    if isinstance(data, str):
+        return data.encode("utf-8"), _TEXT_PARSER
+    return data, _BYTES_PARSER
+
+
+def parse_bml(
+    data: str | bytes, *, source: str = "<bml>", limits: Limits = DEFAULT_LIMITS
+) -> ParseResult:
+    """Parse one BML block.
+
+    Returns the immutable block with the warnings for parts the realizer
+    will not run. Raises :class:`~realizer.bml_parser.errors.BmlError` (with
+    line, column and a BML 1.0 warning type) when the whole block must be
+    rejected: not well-formed, not a ``<bml>`` root, a malformed sync
+    reference, a DTD or entity, or a limit exceeded.
+    """
+    raw, parser = _to_bytes(data)
+    if len(raw) > limits.max_bytes:
+        raise BmlSecurityError(
+            f"document of {len(raw)} bytes exceeds the limit of {limits.max_bytes} bytes",
+            line=1,
+            column=1,
+            source=source,
+        )
+    if _DOCTYPE_RE.match(raw):
+        # Refuse before libxml2 even reads the internal subset.
+        raise BmlSecurityError(_DOCTYPE_MESSAGE, line=1, column=1, source=source)
+    try:
+        root = etree.fromstring(raw, parser)
+    except etree.XMLSyntaxError as exc:
+        line, column = exc.position if exc.position else (exc.lineno or 0, 0)
+        message = re.sub(r", line \d+, column \d+$", "", exc.msg or "not well-formed XML")
+        raise BmlSyntaxError(message, line=line, column=column, source=source) from None
+    if root is None:
+        raise BmlSyntaxError("empty document", line=1, column=1, source=source)
+    docinfo: Any = root.getroottree().docinfo
+    if docinfo.doctype or docinfo.internalDTD is not None:
+        raise BmlSecurityError(_DOCTYPE_MESSAGE, line=1, column=1, source=source)
+    reader = _Reader(raw, source, limits)
+    # Building the tree allocates many small objects and no cycles; pausing
+    # the cyclic garbage collector meanwhile (as JSON decoders do) saves a
+    # third of the time on large blocks. It is restored on every exit.
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        block = reader.block(root)
+    finally:
+        if collecting:
+            gc.enable()
+    return ParseResult(block, tuple(reader.warnings), frozenset(reader.dropped))

@@ -1,0 +1,168 @@
+"""``realizer render FILE.bml -o out.mp4``: render a block offscreen.
+
+Runs the block through the same stage and session as the server, frame by
+frame at ``--fps``, deforms the face and renders each frame offscreen
+(OSMesa or EGL), writing a video through ffmpeg (``.mp4``, ``.mkv``,
+``.webm``, ``.mov``) or numbered PNG files into a folder. Shows a progress
+bar on stderr. Exit 0 when done, 1 when the block was refused, 2 when
+rendering or writing failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+VIDEO_SUFFIXES = (".mp4", ".mkv", ".webm", ".mov")
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "render",
+        help="render a BML block offscreen to a video or PNG files",
+        description=__doc__.split("\n\n")[1] if __doc__ else None,
+    )
+    parser.add_argument("file", type=Path, metavar="FILE.bml")
+    parser.add_argument(
+        "-o", "--output", type=Path, required=True, help="a video file or a folder for PNGs"
+    )
+    parser.add_argument("--size", default="512x512", help="WIDTHxHEIGHT in pixels (512x512)")
+    parser.add_argument("--fps", type=float, default=30.0, help="frames per second (30)")
+    parser.add_argument("--face", default=None, metavar="PATH", help="face parameter file")
+    parser.add_argument("--character", default=None, help="character id (default: the block's)")
+    parser.add_argument("--view", choices=("front", "left", "right"), default="front")
+    parser.add_argument("--tail", type=float, default=0.5, help="seconds after the block ends")
+    parser.add_argument(
+        "--max-duration", type=float, default=120.0, help="stop after this many seconds (120)"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(run=run)
+
+
+def _size(text: str) -> tuple[int, int]:
+    width, _, height = text.lower().partition("x")
+    if not (width.isdigit() and height.isdigit()) or not (16 <= int(width) <= 8192):
+        raise ValueError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 640x480")
+    if not 16 <= int(height) <= 8192:
+        raise ValueError(f"--size {text!r}: height out of range")
+    return int(width), int(height)
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr: frames done of those expected."""
+
+    def __init__(self, total: int | None, quiet: bool) -> None:
+        self.total = total
+        self.quiet = quiet
+        self.done = 0
+
+    def step(self, seconds: float) -> None:
+        self.done += 1
+        if self.quiet:
+            return
+        if self.total:
+            share = min(1.0, self.done / self.total)
+            bar = "#" * int(share * 30)
+            line = f"\rrender [{bar:<30}] {self.done}/{self.total} frames  {seconds:6.2f} s"
+        else:
+            line = f"\rrender {self.done} frames  {seconds:6.2f} s"
+        print(line, end="", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if not self.quiet:
+            print(file=sys.stderr, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from realizer.errors import RealizerError
+    from realizer.face.deform import deform
+    from realizer.face.render import FaceRenderer, save_png
+    from realizer.service.assets import load_face, session_factory
+    from realizer.service.offline import run_offline
+    from realizer.service.stage import Stage
+
+    try:
+        width, height = _size(args.size)
+        if not 1 <= args.fps <= 240:
+            raise ValueError("--fps must be between 1 and 240")
+        text = args.file.read_text(encoding="utf-8")
+        face = load_face(args.face)
+    except (ValueError, OSError, UnicodeDecodeError, RealizerError) as exc:
+        print(f"realizer render: {exc}", file=sys.stderr)
+        return 2
+    video = args.output.suffix.lower() in VIDEO_SUFFIXES
+    if video and shutil.which("ffmpeg") is None:
+        print("realizer render: ffmpeg is not installed (scripts/setup.sh)", file=sys.stderr)
+        return 2
+
+    stage = Stage(session_factory(face))
+    offline = run_offline(
+        stage,
+        text,
+        args.fps,
+        character=args.character,
+        tail=args.tail,
+        max_duration=args.max_duration,
+    )
+    for fb in offline.first_feedback:
+        print(" ".join(fb.xml.split()), file=sys.stderr)
+    if not offline.accepted:
+        print(f"realizer render: block {offline.block_id!r} was refused", file=sys.stderr)
+        return 1
+    expected = None
+    if offline.predicted_end is not None:
+        expected = int(min(offline.predicted_end + args.tail, args.max_duration) * args.fps) + 1
+
+    try:
+        renderer = FaceRenderer(face, width, height)
+    except RealizerError as exc:
+        print(f"realizer render: {exc}", file=sys.stderr)
+        return 2
+    encoder: subprocess.Popen[bytes] | None = None
+    if video:
+        args.output.parent.mkdir(parents=True, exist_ok=True)
+        encoder = subprocess.Popen(
+            [
+                "ffmpeg", "-loglevel", "error", "-y",
+                "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}",
+                "-r", f"{args.fps:g}", "-i", "-",
+                "-c:v", "libx264", "-pix_fmt", "yuv420p", "-movflags", "+faststart",
+                str(args.output),
+            ],
+            stdin=subprocess.PIPE,
+        )  # fmt: skip
+    else:
+        args.output.mkdir(parents=True, exist_ok=True)
+    progress = ProgressBar(expected, args.quiet)
+    count = 0
+    try:
+        with renderer:
+            for frame in offline.frames:
+                vector = np.where(frame.frame.mask, frame.frame.values, 0.0)
+                image = renderer.render(deform(face, vector), view=args.view)
+                if encoder is not None:
+                    assert encoder.stdin is not None
+                    encoder.stdin.write(np.ascontiguousarray(image).tobytes())
+                else:
+                    save_png(image, args.output / f"frame_{frame.number:05d}.png")
+                count += 1
+                progress.step(frame.time)
+    except (BrokenPipeError, OSError) as exc:
+        progress.close()
+        print(f"realizer render: writing failed: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if encoder is not None and encoder.stdin is not None:
+            encoder.stdin.close()
+    progress.close()
+    if encoder is not None and encoder.wait() != 0:
+        print("realizer render: ffmpeg failed", file=sys.stderr)
+        return 2
+    print(f"realizer render: {count} frames at {args.fps:g} fps -> {args.output}", file=sys.stderr)
+    return 0

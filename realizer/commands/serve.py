@@ -1,0 +1,106 @@
+"""``realizer serve``: the real-time service (protocols/, realizer.service).
+
+One process serves many characters, each a session made on first use with
+the face: submitters send BML to ws://HOST:PORT/bml, viewers watch frames on
+ws://HOST:PORT/view, and a browser shows the face at http://HOST:PORT/.
+Without tokens it binds to a loopback address only. Stops cleanly on
+SIGINT or SIGTERM (exit 0).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from typing import Any
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "serve",
+        help="run the real-time BML service (WebSocket + browser viewer)",
+        description=__doc__.split("\n\n")[1] if __doc__ else None,
+    )
+    parser.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
+    parser.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 = any free)")
+    parser.add_argument("--fps", type=float, default=60.0, help="frames per second (default 60)")
+    parser.add_argument("--face", default=None, metavar="PATH", help="face parameter file")
+    parser.add_argument("--character", default="default", help="character for BML that names none")
+    parser.add_argument(
+        "--submit-token",
+        default=os.environ.get("REALIZER_SUBMIT_TOKEN"),
+        help="token that allows submitting BML (default: $REALIZER_SUBMIT_TOKEN)",
+    )
+    parser.add_argument(
+        "--view-token",
+        default=os.environ.get("REALIZER_VIEW_TOKEN"),
+        help="token that allows only viewing (default: $REALIZER_VIEW_TOKEN)",
+    )
+    parser.add_argument(
+        "--limit",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a named limit, e.g. --limit viewers=200 (see protocols/README.md)",
+    )
+    parser.set_defaults(run=run)
+
+
+def _limits(pairs: list[str]) -> Any:
+    from dataclasses import fields, replace
+
+    from realizer.service.limits import DEFAULT_LIMITS
+
+    names = {f.name for f in fields(DEFAULT_LIMITS)}
+    changes: dict[str, int] = {}
+    for pair in pairs:
+        name, _, value = pair.partition("=")
+        if name not in names or not value.isdigit():
+            raise ValueError(
+                f"--limit {pair!r}: expected NAME=INTEGER with NAME one of {sorted(names)}"
+            )
+        changes[name] = int(value)
+    return replace(DEFAULT_LIMITS, **changes)
+
+
+def run(args: argparse.Namespace) -> int:
+    import asyncio
+    import logging
+
+    from realizer.errors import RealizerError
+    from realizer.service.assets import face_assets, load_face, session_factory
+    from realizer.service.server import RealizerService, ServiceConfig, run_service
+    from realizer.service.stage import Stage
+
+    logging.basicConfig(level=logging.WARNING, format="realizer: %(message)s")
+    try:
+        limits = _limits(args.limit)
+        config = ServiceConfig(
+            host=args.host,
+            port=args.port,
+            fps=args.fps,
+            submit_token=args.submit_token or None,
+            view_token=args.view_token or None,
+            limits=limits,
+        )
+        face = load_face(args.face)
+        stage = Stage(session_factory(face), limits, default_character=args.character)
+        assets = face_assets(face)
+    except (RealizerError, ValueError, OSError) as exc:
+        print(f"realizer serve: {exc}", file=sys.stderr)
+        return 2
+
+    def ready(service: RealizerService) -> None:
+        host = f"[{args.host}]" if ":" in args.host else args.host
+        print(
+            f"realizer: serving on {host}:{service.port} "
+            f"(viewer http://{host}:{service.port}/, BML ws://{host}:{service.port}/bml)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    try:
+        return asyncio.run(run_service(config, stage, assets, ready=ready))
+    except OSError as exc:  # e.g. the port is in use
+        print(f"realizer serve: {exc}", file=sys.stderr)
+        return 2

@@ -1,0 +1,56 @@
+"""The face the service shows, and the sessions that animate it.
+
+Every character is a :class:`realizer.session.Session` on one face (the
+default face, or ``realizer serve --face PATH``); the service also needs
+that face's deformer (for vertex frames) and its colours (for the browser
+viewer). All are loaded once, at start-up.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from realizer.service.server import FaceAssets
+from realizer.service.stage import SessionLike
+
+
+def load_face(path: str | Path | None = None) -> Any:
+    """The face in the face parameter file at ``path``, or the default face."""
+    if path is None:
+        from realizer.face.default import load_default_face
+
+        return load_default_face()
+    from realizer.face.paramfile import load_face as load_face_file
+
+    return load_face_file(path)
+
+
+def srgb_colours(face: Any) -> np.ndarray:
+    """(n, 3) uint8 sRGB vertex colours, as the offscreen renderer colours
+    the parts (its colours are linear RGB in 0..1)."""
+    from realizer.face.render import vertex_colours
+
+    linear = np.clip(np.asarray(vertex_colours(face), dtype=np.float64), 0.0, 1.0)
+    srgb = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+    return np.asarray(np.rint(srgb * 255), dtype=np.uint8)
+
+
+def face_assets(face: Any) -> FaceAssets:
+    """The face with the deformer and colours the service streams."""
+    from realizer.face.deform import deform
+
+    return FaceAssets(face=face, deform=deform, colours=srgb_colours(face))
+
+
+def session_factory(face: Any) -> Any:
+    """``character_id -> Session(character_id, face)``."""
+    from realizer.session import Session
+
+    def make(character_id: str) -> SessionLike:
+        session: SessionLike = Session(character_id, face)
+        return session
+
+    return make

@@ -1,0 +1,245 @@
+"""Every message of the two WebSocket endpoints, as typed dictionaries.
+
+The wire protocol is specified in ``protocols/`` (ARCHITECTURE.md decision
+6); this module is its Python mirror. As in uvicorn, each message is a
+``TypedDict`` tagged by a ``Literal`` ``type`` field, so a reader sees every
+field in one place and mypy checks the code that builds them.
+
+Submitter endpoint ``/bml`` (text frames): a client sends plain BML, or a
+JSON envelope (:class:`BmlRequest`, :class:`InterruptRequest`); the server
+answers with BML feedback XML, or, when the client asked for ``format=json``,
+with :class:`WelcomeMessage`, :class:`FeedbackMessage` and
+:class:`BlockMessage`.
+
+Viewer endpoint ``/view`` (binary msgpack frames from the server; text JSON
+:class:`SubscribeRequest` from the client): :class:`MeshMessage` first, then
+one :class:`FrameMessage` per clock tick. The layouts of their byte fields
+are in :mod:`realizer.service.codec`.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Literal, NotRequired, TypedDict
+from xml.sax.saxutils import escape, quoteattr
+
+from realizer.bml_parser import BML_NS
+from realizer.service.errors import BadMessage
+
+#: Version of both endpoints' messages; bumped on any incompatible change.
+PROTOCOL_VERSION = 1
+
+FeedbackFormat = Literal["xml", "json"]
+VertexEncoding = Literal["none", "float32", "int16"]
+BlockState = Literal["accepted", "rejected", "done", "interrupted"]
+
+
+# -- submitter, client to server ---------------------------------------------
+
+
+class BmlRequest(TypedDict):
+    """Run a BML block. ``character`` overrides the block's ``characterId``."""
+
+    type: Literal["bml"]
+    bml: str
+    character: NotRequired[str]
+
+
+class InterruptRequest(TypedDict):
+    """Interrupt a pending or running block by its id."""
+
+    type: Literal["interrupt"]
+    block: str
+    character: NotRequired[str]
+
+
+# -- submitter, server to client (format=json) -------------------------------
+
+
+class WelcomeMessage(TypedDict):
+    type: Literal["welcome"]
+    protocol: int
+    server: str  # the realizer's version
+    character: str  # the connection's default character
+    fps: float  # frames per second of the clock
+    limits: dict[str, int]
+
+
+class FeedbackMessage(TypedDict):
+    """One BML 1.0 feedback element. ``time``: session seconds."""
+
+    type: Literal["feedback"]
+    character: str
+    kind: str  # prediction, blockProgress, syncPointProgress, warning
+    block: str
+    time: float
+    xml: str
+
+
+class BlockMessage(TypedDict):
+    """A block's state changed: accepted, rejected, done or interrupted."""
+
+    type: Literal["block"]
+    character: str
+    block: str
+    state: BlockState
+    time: float
+
+
+# -- viewer, client to server -------------------------------------------------
+
+
+class SubscribeRequest(TypedDict):
+    """Switch the viewer to ``character`` and/or change what it receives."""
+
+    type: Literal["subscribe"]
+    character: NotRequired[str]
+    fap: NotRequired[bool]
+    vertices: NotRequired[VertexEncoding]
+
+
+# -- viewer, server to client (msgpack) ---------------------------------------
+
+
+class MeshMessage(TypedDict):
+    """Topology and neutral pose; sent first, and after every subscribe.
+
+    ``faces``: (m, 3) uint32 little-endian; ``neutral``: (n, 3) float32
+    little-endian metres; ``colours``: (n, 3) uint8 sRGB; ``step``: metres
+    per unit of the int16 vertex deltas.
+    """
+
+    type: Literal["mesh"]
+    v: int
+    character: str
+    fps: float
+    vertexCount: int
+    faceCount: int
+    faces: bytes
+    neutral: bytes
+    colours: bytes
+    step: float
+
+
+class FapPayload(TypedDict):
+    """The FAPs that are set: ``ids`` uint8 FAP numbers 1..68, ``values``
+    float32 little-endian in FAPU-scaled units, same order."""
+
+    ids: bytes
+    values: bytes
+
+
+class DeltaPayload(TypedDict):
+    """Vertices away from the neutral pose: ``ids`` uint32 little-endian
+    vertex indices, ``q`` (k, 3) int16 little-endian offsets in units of the
+    mesh's ``step``. Vertices not listed are at the neutral pose."""
+
+    ids: bytes
+    q: bytes
+
+
+class FrameMessage(TypedDict):
+    """One tick of the clock for one character. ``n``: frame number (frame n
+    is due at n / fps seconds after the clock started); ``t``: session
+    seconds the frame shows."""
+
+    type: Literal["frame"]
+    v: int
+    character: str
+    n: int
+    t: float
+    fap: NotRequired[FapPayload]
+    vertices: NotRequired[bytes]  # (n, 3) float32 little-endian, metres
+    delta: NotRequired[DeltaPayload]
+
+
+# -- reading client messages ---------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class ViewOptions:
+    """What one viewer receives each tick."""
+
+    fap: bool = True
+    vertices: VertexEncoding = "none"
+
+    def __post_init__(self) -> None:
+        if self.vertices not in ("none", "float32", "int16"):
+            raise BadMessage(f"vertices must be none, float32 or int16, not {self.vertices!r}")
+
+
+SubmitterRequest = BmlRequest | InterruptRequest
+
+
+def read_submitter_message(text: str) -> SubmitterRequest:
+    """A submitter's text message as a request: plain BML or a JSON envelope.
+
+    Raises :class:`BadMessage` for anything else; the caller answers it with
+    a ``warningFeedback`` and the connection goes on.
+    """
+    head = text.lstrip()[:1]
+    if head == "<":
+        return BmlRequest(type="bml", bml=text)
+    if head != "{":
+        raise BadMessage("expected a BML document or a JSON object")
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise BadMessage(f"malformed JSON at line {exc.lineno}, column {exc.colno}") from None
+    if not isinstance(data, dict):
+        raise BadMessage("expected a JSON object")
+    kind = data.get("type")
+    character = data.get("character")
+    if character is not None and not isinstance(character, str):
+        raise BadMessage("character must be a string")
+    if kind == "bml":
+        bml = data.get("bml")
+        if not isinstance(bml, str):
+            raise BadMessage("a bml message needs the BML text in its 'bml' field")
+        request = BmlRequest(type="bml", bml=bml)
+        if character is not None:
+            request["character"] = character
+        return request
+    if kind == "interrupt":
+        block = data.get("block")
+        if not isinstance(block, str) or not block:
+            raise BadMessage("an interrupt message needs the block id in its 'block' field")
+        interrupt = InterruptRequest(type="interrupt", block=block)
+        if character is not None:
+            interrupt["character"] = character
+        return interrupt
+    raise BadMessage(f"unknown message type {kind!r}; expected 'bml' or 'interrupt'")
+
+
+def read_subscribe_message(text: str) -> SubscribeRequest:
+    """A viewer's text message; raises :class:`BadMessage` when it is not one."""
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError:
+        raise BadMessage("expected a JSON subscribe message") from None
+    if not isinstance(data, dict) or data.get("type") != "subscribe":
+        raise BadMessage("expected a JSON object with type 'subscribe'")
+    request = SubscribeRequest(type="subscribe")
+    if "character" in data:
+        if not isinstance(data["character"], str):
+            raise BadMessage("character must be a string")
+        request["character"] = data["character"]
+    if "fap" in data:
+        if not isinstance(data["fap"], bool):
+            raise BadMessage("fap must be true or false")
+        request["fap"] = data["fap"]
+    if "vertices" in data:
+        if data["vertices"] not in ("none", "float32", "int16"):
+            raise BadMessage("vertices must be none, float32 or int16")
+        request["vertices"] = data["vertices"]
+    return request
+
+
+def warning_feedback_xml(block_id: str, character_id: str, warning_type: str, text: str) -> str:
+    """A BML 1.0 ``warningFeedback`` element for a warning the service makes."""
+    return (
+        f"<warningFeedback xmlns={quoteattr(BML_NS)} id={quoteattr(block_id)} "
+        f"characterId={quoteattr(character_id)} type={quoteattr(warning_type)}>"
+        f"{escape(text)}</warningFeedback>"
+    )

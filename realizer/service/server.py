@@ -1,0 +1,674 @@
+"""The asyncio layer: WebSocket endpoints, plain HTTP, the frame clock.
+
+A thin shell around :class:`realizer.service.stage.Stage` (the sans-I/O
+core), in the manner of websockets' ``asyncio`` sub-package: it reads
+messages, passes them with the time of arrival to the stage, and sends what
+the stage returns. One port serves
+
+* ``/bml``   submitters: BML in, BML feedback out (protocols/submitter.md);
+* ``/view``  viewers: mesh, then msgpack frames (protocols/viewer.md);
+* ``/``      the browser viewer; ``/health`` and ``/version`` as JSON.
+
+Why a remotely controllable face with its own clock (seed 000 section 4.2):
+the thesis drove Xface over TCP and lost frames sent quickly one after the
+other, so its frames went out once per 250 ms. Here the server owns the
+clock: frame n is computed at ``start + n / fps`` (never by adding periods,
+so it cannot drift), every session advances once per tick, and each viewer
+has a mailbox of one frame that a newer frame replaces. A viewer that reads
+slowly gets fewer, complete frames; it never delays the clock or any other
+viewer, and what the server holds for it stays bounded.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hmac
+import http
+import ipaddress
+import json
+import logging
+import signal
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass, field
+from importlib import resources
+from typing import Any, ClassVar, cast
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+import numpy.typing as npt
+from websockets.asyncio.server import Server, ServerConnection, serve
+from websockets.datastructures import Headers
+from websockets.exceptions import ConnectionClosed
+from websockets.http11 import Request, Response
+
+from realizer import __version__
+from realizer.service import codec
+from realizer.service.errors import BadMessage, CloseCode, ConfigError, PeerError
+from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
+from realizer.service.messages import (
+    PROTOCOL_VERSION,
+    BlockMessage,
+    FeedbackFormat,
+    FeedbackMessage,
+    ViewOptions,
+    WelcomeMessage,
+    read_submitter_message,
+    read_subscribe_message,
+    warning_feedback_xml,
+)
+from realizer.service.stage import (
+    BlockEvent,
+    Deformer,
+    FaceLike,
+    FrameEncoder,
+    Outgoing,
+    Stage,
+    WireFeedback,
+)
+
+logger = logging.getLogger("realizer.service")
+
+SUBMIT_PATH = "/bml"
+VIEW_PATH = "/view"
+
+
+@dataclass(frozen=True, slots=True)
+class ServiceConfig:
+    """How to run the service. ``port`` 0 picks a free port; ``fps`` is the
+    clock's rate in frames per second; ``shutdown_timeout`` bounds, in
+    seconds, each waiting step of the shutdown sequence."""
+
+    host: str = "127.0.0.1"
+    port: int = 8765
+    fps: float = 60.0
+    submit_token: str | None = None
+    view_token: str | None = None
+    limits: ServiceLimits = DEFAULT_LIMITS
+    shutdown_timeout: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not 1.0 <= self.fps <= 1000.0:
+            raise ConfigError(f"fps must be between 1 and 1000, not {self.fps}")
+        if self.submit_token is None and self.view_token is None and not is_loopback(self.host):
+            raise ConfigError(
+                f"refusing to serve on {self.host!r} without tokens: set a submit token "
+                "and/or a view token, or bind to a loopback address such as 127.0.0.1"
+            )
+
+
+def is_loopback(host: str) -> bool:
+    """True for ``localhost`` and loopback addresses (127.0.0.0/8, ::1)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+@dataclass(frozen=True, slots=True)
+class FaceAssets:
+    """The face every character shows: the model, its deformer and colours."""
+
+    face: FaceLike
+    deform: Deformer
+    colours: npt.NDArray[np.uint8] | None = None
+
+
+@dataclass(slots=True)
+class ClockStats:
+    """What the frame clock did; read by /health and the benchmark."""
+
+    ticks: int = 0
+    skipped: int = 0  # frames not computed because the clock was behind
+    last_tick_seconds: float = 0.0  # work of the last tick
+    max_tick_seconds: float = 0.0
+    max_lateness_seconds: float = 0.0  # tick start after its due time
+
+
+@dataclass(eq=False, slots=True)
+class Submitter:
+    """One submitter connection: its outgoing text messages, in order."""
+
+    connection: ServerConnection
+    format: FeedbackFormat
+    default_character: str
+    characters: set[str] = field(default_factory=set)
+    outbox: deque[str] = field(default_factory=deque)
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    closing: bool = False
+
+
+@dataclass(eq=False, slots=True)
+class Viewer:
+    """One viewer connection: control messages (never dropped) and a
+    mailbox holding only the newest frame."""
+
+    connection: ServerConnection
+    character: str
+    options: ViewOptions
+    control: deque[bytes] = field(default_factory=deque)
+    latest: bytes | None = None
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    offered: int = 0
+    replaced: int = 0  # frames replaced before they were sent
+    closing: bool = False
+
+    def offer(self, frame: bytes) -> None:
+        """Put the newest frame in the mailbox, replacing an unsent one."""
+        if self.latest is not None:
+            self.replaced += 1
+        self.latest = frame
+        self.offered += 1
+        self.wake.set()
+
+
+class RealizerService:
+    """The server. ``await start()``, then ``await shutdown()``; see
+    :func:`run_service` for the process around it."""
+
+    def __init__(self, config: ServiceConfig, stage: Stage, assets: FaceAssets) -> None:
+        self.config = config
+        self.stage = stage
+        self.assets = assets
+        self.limits: ServiceLimits = config.limits
+        self.stats = ClockStats()
+        self.submitters: set[Submitter] = set()
+        self.viewers: dict[str, set[Viewer]] = {}
+        self.encoders: dict[str, FrameEncoder] = {}
+        self._server: Server | None = None
+        self._clock: asyncio.Task[None] | None = None
+        self._tasks: set[asyncio.Task[Any]] = set()
+        self._start = 0.0  # loop time of frame 0
+        self._frame = 0  # number of the next frame
+        self._stopping = False
+        self._static = _StaticFiles()
+
+    # -- life cycle ---------------------------------------------------------------
+
+    @property
+    def port(self) -> int:
+        """The port actually bound (useful with ``port=0``)."""
+        assert self._server is not None, "start() first"
+        return int(self._server.sockets[0].getsockname()[1])
+
+    def now(self) -> float:
+        """Service time in seconds since the clock started."""
+        return asyncio.get_running_loop().time() - self._start
+
+    async def start(self) -> None:
+        """Bind the port and start the clock."""
+        loop = asyncio.get_running_loop()
+        self._server = await serve(
+            self._handle,
+            self.config.host,
+            self.config.port,
+            process_request=self._process_request,
+            max_size=self.limits.message_bytes,
+            # Frames are msgpack of float32/int16 data and small; deflate
+            # would cost CPU per viewer for little gain.
+            compression=None,
+            close_timeout=self.config.shutdown_timeout,
+            # Per-connection buffer before send() waits: about a dozen
+            # vertex frames of the default face, so a viewer that stops
+            # reading holds at most this much plus one mailbox frame.
+            write_limit=256 * 1024,
+        )
+        self._start = loop.time()
+        self._clock = loop.create_task(self._run_clock(), name="realizer-clock")
+
+    async def shutdown(self, reason: str = "server shutting down") -> None:
+        """The shutdown sequence, each waiting step bounded by the timeout."""
+        if self._stopping:
+            return
+        self._stopping = True
+        timeout = self.config.shutdown_timeout
+        assert self._server is not None
+        # 1. Stop accepting: close the listening socket; handshakes still in
+        #    progress are answered 503 by websockets.
+        self._server.server.close()
+        # 2. Stop the clock, then interrupt every pending and running block,
+        #    so submitters get the feedback of their blocks' end, and tick
+        #    once more to flush what the interruption produced.
+        if self._clock is not None:
+            self._clock.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._clock
+        now = self.now()
+        self._dispatch(self.stage.interrupt_all(now))
+        for character_tick in self.stage.tick(now):
+            self._dispatch(character_tick.messages)
+        # 3. Let the submitters' outboxes drain (bounded).
+        deadline = asyncio.get_running_loop().time() + timeout
+        while any(s.outbox for s in self.submitters if not s.closing):
+            if asyncio.get_running_loop().time() > deadline:
+                break
+            await asyncio.sleep(0.01)
+        # 4. Close every connection with 1001 (going away) and wait for the
+        #    handlers, bounded; 5. abort what is left.
+        self._server.close(close_connections=True, code=CloseCode.GOING_AWAY, reason=reason)
+        try:
+            await asyncio.wait_for(self._server.wait_closed(), timeout * 2)
+        except TimeoutError:
+            for connection in list(self._server.connections):
+                connection.transport.abort()
+        for task in list(self._tasks):
+            task.cancel()
+
+    # -- the clock ------------------------------------------------------------------
+
+    async def _run_clock(self) -> None:
+        loop = asyncio.get_running_loop()
+        fps = self.config.fps
+        while True:
+            due = self._start + self._frame / fps
+            delay = due - loop.time()
+            if delay > 0:
+                await asyncio.sleep(delay)
+            begun = loop.time()
+            # Behind by whole frames (a long pause, an overloaded machine):
+            # skip to the frame that is due now instead of computing a burst
+            # of stale frames; frame numbers stay tied to time.
+            behind = int((begun - self._start) * fps) - self._frame
+            if behind > 0:
+                self.stats.skipped += behind
+                self._frame += behind
+            due = self._start + self._frame / fps
+            self.stats.max_lateness_seconds = max(self.stats.max_lateness_seconds, begun - due)
+            started = time.perf_counter()
+            try:
+                self._tick(self._frame, self._frame / fps)
+            except Exception:  # a bug in a session must not stop every character
+                logger.exception("tick %d failed", self._frame)
+            spent = time.perf_counter() - started
+            self.stats.last_tick_seconds = spent
+            self.stats.max_tick_seconds = max(self.stats.max_tick_seconds, spent)
+            self.stats.ticks += 1
+            self._frame += 1
+
+    def _tick(self, number: int, now: float) -> None:
+        for character_tick in self.stage.tick(now):
+            if character_tick.messages:
+                self._dispatch(character_tick.messages)
+            viewers = self.viewers.get(character_tick.character)
+            if not viewers:
+                continue
+            encoded = self._encoder(character_tick.character).encode(
+                number, character_tick.time, character_tick.frame, (v.options for v in viewers)
+            )
+            for viewer in viewers:
+                viewer.offer(encoded[viewer.options])
+
+    def _encoder(self, character_id: str) -> FrameEncoder:
+        encoder = self.encoders.get(character_id)
+        if encoder is None:
+            encoder = FrameEncoder(
+                character_id,
+                self.assets.face,
+                self.assets.deform,
+                self.config.fps,
+                self.assets.colours,
+            )
+            self.encoders[character_id] = encoder
+        return encoder
+
+    # -- plain HTTP and the handshake --------------------------------------------------
+
+    def _process_request(self, connection: ServerConnection, request: Request) -> Response | None:
+        url = urlsplit(request.path)
+        if url.path in (SUBMIT_PATH, VIEW_PATH):
+            return self._authorise(url.path, parse_qs(url.query), request.headers)
+        if request.headers.get("Upgrade", "").lower() == "websocket":
+            return _response(http.HTTPStatus.NOT_FOUND, b"no WebSocket endpoint here\n")
+        if url.path == "/health":
+            return _json_response(self.health())
+        if url.path == "/version":
+            return _json_response(
+                {"realizer": __version__, "protocol": PROTOCOL_VERSION, "fps": self.config.fps}
+            )
+        found = self._static.get(url.path)
+        if found is not None:
+            body, content_type = found
+            return _response(http.HTTPStatus.OK, body, content_type)
+        return _response(http.HTTPStatus.NOT_FOUND, b"not found\n")
+
+    def _authorise(
+        self, path: str, query: dict[str, list[str]], headers: Headers
+    ) -> Response | None:
+        submit, view = self.config.submit_token, self.config.view_token
+        if submit is None and view is None:
+            return None
+        token = query.get("token", [""])[0]
+        bearer = headers.get("Authorization", "")
+        if not token and bearer.lower().startswith("bearer "):
+            token = bearer[7:].strip()
+        may_submit = submit is not None and _same(token, submit)
+        may_view = may_submit or (view is not None and _same(token, view))
+        if path == SUBMIT_PATH and not may_submit:
+            if may_view:
+                return _response(http.HTTPStatus.FORBIDDEN, b"this token may only view\n")
+            return _response(http.HTTPStatus.UNAUTHORIZED, b"a submit token is required\n")
+        if path == VIEW_PATH and not may_view:
+            return _response(http.HTTPStatus.UNAUTHORIZED, b"a view or submit token is required\n")
+        return None
+
+    def health(self) -> dict[str, Any]:
+        """What ``/health`` answers."""
+        return {
+            "status": "stopping" if self._stopping else "ok",
+            "characters": len(self.stage.characters),
+            "characterIds": sorted(self.stage.characters),
+            "viewers": sum(len(v) for v in self.viewers.values()),
+            "submitters": len(self.submitters),
+            "frame": self._frame,
+            "fps": self.config.fps,
+            "clock": asdict(self.stats),
+        }
+
+    async def _handle(self, connection: ServerConnection) -> None:
+        url = urlsplit(connection.request.path if connection.request else "/")
+        query = {k: v[0] for k, v in parse_qs(url.query).items()}
+        try:
+            if url.path == SUBMIT_PATH:
+                await self._serve_submitter(connection, query)
+            elif url.path == VIEW_PATH:
+                await self._serve_viewer(connection, query)
+        except ConnectionClosed:
+            pass
+
+    # -- submitters -------------------------------------------------------------------
+
+    async def _serve_submitter(self, connection: ServerConnection, query: dict[str, str]) -> None:
+        fmt = query.get("format", "xml")
+        character = query.get("character", self.stage.default_character)
+        if fmt not in ("xml", "json"):
+            await connection.close(CloseCode.POLICY_VIOLATION, "format must be xml or json")
+            return
+        if not valid_character_id(character):
+            await connection.close(CloseCode.POLICY_VIOLATION, "invalid character id")
+            return
+        if len(self.submitters) >= self.limits.submitters:
+            await connection.close(
+                CloseCode.TRY_AGAIN_LATER, f"limit of {self.limits.submitters} submitters reached"
+            )
+            return
+        submitter = Submitter(connection, cast(FeedbackFormat, fmt), character)
+        if "character" in query:
+            submitter.characters.add(character)
+        self.submitters.add(submitter)
+        pump = self._spawn(self._pump_submitter(submitter))
+        if submitter.format == "json":
+            welcome = WelcomeMessage(
+                type="welcome",
+                protocol=PROTOCOL_VERSION,
+                server=__version__,
+                character=character,
+                fps=self.config.fps,
+                limits=asdict(self.limits),
+            )
+            self._push(submitter, json.dumps(welcome))
+        try:
+            async for message in connection:
+                if isinstance(message, bytes):
+                    await connection.close(
+                        CloseCode.UNSUPPORTED_DATA,
+                        "the submitter endpoint takes text: BML or a JSON envelope",
+                    )
+                    break
+                self._on_submit(submitter, message)
+        finally:
+            self.submitters.discard(submitter)
+            pump.cancel()
+
+    def _on_submit(self, submitter: Submitter, text: str) -> None:
+        now = self.now()
+        try:
+            request = read_submitter_message(text)
+        except BadMessage as exc:
+            xml = warning_feedback_xml(
+                "", submitter.default_character, exc.warning_type, exc.message
+            )
+            warning = WireFeedback(submitter.default_character, "warning", "", now, xml)
+            self._dispatch([warning], also=submitter)
+            return
+        if request["type"] == "bml":
+            result = self.stage.submit_bml(
+                request["bml"],
+                now,
+                character=request.get("character"),
+                fallback=submitter.default_character,
+            )
+            if result.character in self.stage.characters:
+                submitter.characters.add(result.character)
+            self._dispatch(result.messages, also=submitter)
+        else:
+            character = request.get("character", submitter.default_character)
+            self._dispatch(self.stage.interrupt(character, request["block"], now), also=submitter)
+
+    def _dispatch(self, messages: Iterable[Outgoing], also: Submitter | None = None) -> None:
+        for message in messages:
+            for submitter in self.submitters:
+                if submitter is also or message.character in submitter.characters:
+                    self._push(submitter, _render(message, submitter.format))
+            if also is not None and also not in self.submitters:
+                self._push(also, _render(message, also.format))
+
+    def _push(self, submitter: Submitter, text: str | None) -> None:
+        if text is None or submitter.closing:
+            return
+        if len(submitter.outbox) >= self.limits.feedback_backlog:
+            submitter.closing = True
+            submitter.outbox.clear()
+            self._spawn(
+                submitter.connection.close(
+                    CloseCode.POLICY_VIOLATION,
+                    f"feedback backlog over {self.limits.feedback_backlog} messages; read faster",
+                )
+            )
+            return
+        submitter.outbox.append(text)
+        submitter.wake.set()
+
+    async def _pump_submitter(self, submitter: Submitter) -> None:
+        with contextlib.suppress(ConnectionClosed):
+            while True:
+                while not submitter.outbox:
+                    submitter.wake.clear()
+                    await submitter.wake.wait()
+                await submitter.connection.send(submitter.outbox.popleft())
+
+    # -- viewers ----------------------------------------------------------------------
+
+    async def _serve_viewer(self, connection: ServerConnection, query: dict[str, str]) -> None:
+        character = query.get("character", self.stage.default_character)
+        try:
+            options = ViewOptions(
+                fap=query.get("fap", "true").lower() not in ("0", "false", "no"),
+                vertices=cast(Any, query.get("vertices", "none")),
+            )
+            self._admit_viewer(character)
+        except PeerError as exc:
+            await connection.close(exc.close_code, exc.message[:120])
+            return
+        viewer = Viewer(connection, character, options)
+        viewer.control.append(self._encoder(character).mesh_bytes)
+        self.viewers.setdefault(character, set()).add(viewer)
+        pump = self._spawn(self._pump_viewer(viewer))
+        try:
+            async for message in connection:
+                if isinstance(message, bytes):
+                    await connection.close(
+                        CloseCode.UNSUPPORTED_DATA, "the viewer endpoint takes JSON text messages"
+                    )
+                    break
+                self._on_subscribe(viewer, message)
+        finally:
+            self.viewers.get(viewer.character, set()).discard(viewer)
+            pump.cancel()
+
+    def _admit_viewer(self, character: str) -> None:
+        """Raises :class:`PeerError` when ``character`` may not get one more viewer."""
+        total = sum(len(v) for v in self.viewers.values())
+        if total >= self.limits.viewers:
+            raise _limit(f"limit of {self.limits.viewers} viewers reached")
+        if len(self.viewers.get(character, ())) >= self.limits.viewers_per_character:
+            raise _limit(f"limit of {self.limits.viewers_per_character} viewers per character")
+        self.stage.character(character)
+
+    def _on_subscribe(self, viewer: Viewer, text: str) -> None:
+        try:
+            request = read_subscribe_message(text)
+            character = request.get("character", viewer.character)
+            options = ViewOptions(
+                fap=request.get("fap", viewer.options.fap),
+                vertices=request.get("vertices", viewer.options.vertices),
+            )
+            if character != viewer.character:
+                self._admit_viewer(character)
+        except PeerError as exc:
+            error = {"type": "error", "v": PROTOCOL_VERSION, "reason": exc.message}
+            self._control(viewer, codec.pack(error))
+            return
+        self.viewers.get(viewer.character, set()).discard(viewer)
+        viewer.character, viewer.options = character, options
+        self.viewers.setdefault(character, set()).add(viewer)
+        viewer.latest = None  # a frame of the old subscription must not follow the new mesh
+        self._control(viewer, self._encoder(character).mesh_bytes)
+
+    def _control(self, viewer: Viewer, data: bytes) -> None:
+        if len(viewer.control) >= self.limits.subscribe_backlog:
+            viewer.closing = True
+            self._spawn(
+                viewer.connection.close(CloseCode.POLICY_VIOLATION, "too many subscribe requests")
+            )
+            return
+        viewer.control.append(data)
+        viewer.wake.set()
+
+    async def _pump_viewer(self, viewer: Viewer) -> None:
+        with contextlib.suppress(ConnectionClosed):
+            while True:
+                if viewer.control:
+                    data = viewer.control.popleft()
+                elif viewer.latest is not None:
+                    data, viewer.latest = viewer.latest, None
+                else:
+                    viewer.wake.clear()
+                    await viewer.wake.wait()
+                    continue
+                await viewer.connection.send(data)
+
+    # -- helpers -----------------------------------------------------------------------
+
+    def _spawn(self, coroutine: Any) -> asyncio.Task[Any]:
+        task: asyncio.Task[Any] = asyncio.get_running_loop().create_task(coroutine)
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+        return task
+
+
+def _limit(message: str) -> PeerError:
+    from realizer.service.errors import LimitExceeded
+
+    return LimitExceeded(message)
+
+
+def _same(given: str, expected: str) -> bool:
+    return hmac.compare_digest(given.encode(), expected.encode())
+
+
+def _render(message: Outgoing, fmt: FeedbackFormat) -> str | None:
+    """A stage message as this submitter's text (XML mode has no block events)."""
+    if isinstance(message, WireFeedback):
+        if fmt == "xml":
+            return message.xml
+        return json.dumps(
+            FeedbackMessage(
+                type="feedback",
+                character=message.character,
+                kind=message.kind,
+                block=message.block_id,
+                time=message.time,
+                xml=message.xml,
+            )
+        )
+    assert isinstance(message, BlockEvent)
+    if fmt == "xml":
+        return None
+    return json.dumps(
+        BlockMessage(
+            type="block",
+            character=message.character,
+            block=message.block_id,
+            state=message.state,
+            time=message.time,
+        )
+    )
+
+
+def _response(status: http.HTTPStatus, body: bytes, content_type: str = "text/plain") -> Response:
+    headers = Headers(
+        [
+            ("Content-Type", content_type),
+            ("Content-Length", str(len(body))),
+            ("Cache-Control", "no-store"),
+            ("Connection", "close"),
+        ]
+    )
+    return Response(status.value, status.phrase, headers, body)
+
+
+def _json_response(data: dict[str, Any]) -> Response:
+    return _response(http.HTTPStatus.OK, json.dumps(data).encode(), "application/json")
+
+
+class _StaticFiles:
+    """The browser viewer's files, from the package data (read once)."""
+
+    _TYPES: ClassVar[dict[str, str]] = {
+        ".html": "text/html; charset=utf-8",
+        ".js": "text/javascript; charset=utf-8",
+        ".css": "text/css; charset=utf-8",
+        ".xml": "application/xml",
+    }
+
+    def __init__(self) -> None:
+        self._files: dict[str, tuple[bytes, str]] = {}
+        root = resources.files("realizer.service") / "static"
+        for entry in root.iterdir():
+            suffix = "." + entry.name.rpartition(".")[2]
+            if entry.is_file() and suffix in self._TYPES:
+                self._files["/static/" + entry.name] = (entry.read_bytes(), self._TYPES[suffix])
+        if "/static/index.html" in self._files:
+            self._files["/"] = self._files["/static/index.html"]
+
+    def get(self, path: str) -> tuple[bytes, str] | None:
+        return self._files.get(path)
+
+
+async def run_service(
+    config: ServiceConfig,
+    stage: Stage,
+    assets: FaceAssets,
+    *,
+    ready: Callable[[RealizerService], None] | None = None,
+) -> int:
+    """Serve until SIGINT or SIGTERM, then shut down cleanly; returns 0."""
+    service = RealizerService(config, stage, assets)
+    await service.start()
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(signum, stop.set)
+    if ready is not None:
+        ready(service)
+    try:
+        await stop.wait()
+    finally:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(signum)
+        await service.shutdown()
+    return 0

@@ -1,0 +1,410 @@
+"""The service's sans-I/O core: characters, their sessions, routing, frames.
+
+Like the protocol core of websockets, a :class:`Stage` never touches a
+socket and never reads a clock (ARCHITECTURE.md decision 1): the asyncio
+layer (:mod:`realizer.service.server`) passes ``now`` in seconds and sends
+what the stage returns. Tests drive a stage at any speed, with no network.
+
+A stage keeps one :class:`realizer.session.Session` per character id,
+created on first use, and answers
+
+* :meth:`Stage.submit_bml`: route a BML document to its character (the
+  request's ``character``, else the block's ``characterId``, else the
+  connection's default), check the named limits, hand it to the session and
+  return the feedback it made at once (the prediction, or a warning);
+* :meth:`Stage.interrupt`: interrupt a block by id;
+* :meth:`Stage.tick`: advance every session once to ``now`` (one clock
+  tick), returning each character's progress feedback and FAP frame.
+
+Time given to sessions never goes backwards: a BML document that arrives
+between the due time of a frame and the moment the clock computes it is
+received at its arrival time, and that frame is then computed at the same
+time, not before (the frame's ``t`` says which).
+
+:class:`FrameEncoder` turns a character's FAP frame into the msgpack bytes
+each kind of viewer wants, deforming the face at most once per tick and not
+at all when the FAPs did not change.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from realizer.bml_parser import BmlError, Limits, parse_bml
+from realizer.errors import RealizerError
+from realizer.service import codec
+from realizer.service.errors import LimitExceeded, PeerError
+from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
+from realizer.service.messages import BlockState, DeltaPayload, ViewOptions, warning_feedback_xml
+
+# -- what the stage needs from the session and the face (docs/interfaces.md) --
+
+
+class FeedbackLike(Protocol):
+    @property
+    def kind(self) -> str: ...
+    @property
+    def block_id(self) -> str: ...
+    @property
+    def time(self) -> float: ...
+    @property
+    def xml(self) -> str: ...
+
+
+class FrameLike(Protocol):
+    @property
+    def values(self) -> npt.NDArray[np.float64]: ...  # (68,) FAPU-scaled units
+    @property
+    def mask(self) -> npt.NDArray[np.bool_]: ...  # (68,)
+
+
+class SessionLike(Protocol):
+    def receive_bml(self, text: str, now: float) -> Any: ...
+    def interrupt(self, block_id: str, now: float) -> Any: ...
+    def tick(self, now: float) -> Any: ...
+    def take_feedback(self) -> list[Any]: ...
+    def frame(self, now: float) -> Any: ...
+
+
+class FaceLike(Protocol):
+    @property
+    def vertices(self) -> npt.NDArray[Any]: ...  # (n, 3) neutral pose, metres
+    @property
+    def faces(self) -> npt.NDArray[Any]: ...  # (m, 3) triangles
+
+
+SessionFactory = Callable[[str], SessionLike]
+Deformer = Callable[[Any, npt.NDArray[np.float64]], npt.NDArray[Any]]
+
+
+# -- what the stage returns ----------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class WireFeedback:
+    """One feedback element for the submitters of ``character``."""
+
+    character: str
+    kind: str
+    block_id: str
+    time: float
+    xml: str
+
+
+@dataclass(frozen=True, slots=True)
+class BlockEvent:
+    """A block of ``character`` changed state (see protocols/submitter.md)."""
+
+    character: str
+    block_id: str
+    state: BlockState
+    time: float
+
+
+Outgoing = WireFeedback | BlockEvent
+
+
+@dataclass(frozen=True, slots=True)
+class SubmitResult:
+    """What a submission did: the character it went to (``""`` when it never
+    reached one), the block's id, and the messages to send, in order."""
+
+    character: str
+    block_id: str
+    accepted: bool
+    messages: tuple[Outgoing, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class CharacterTick:
+    """One character after one tick: its frame at ``time`` and its feedback."""
+
+    character: str
+    time: float
+    frame: Any  # FapFrame
+    messages: tuple[Outgoing, ...]
+
+
+@dataclass(slots=True)
+class Character:
+    """A character's session and the blocks the stage counts against limits.
+
+    ``open_blocks``: id -> session time it was accepted, until its end
+    feedback; ``interrupting``: ids of open blocks asked to stop.
+    """
+
+    id: str
+    session: SessionLike
+    open_blocks: dict[str, float] = field(default_factory=dict)
+    interrupting: set[str] = field(default_factory=set)
+
+
+_ROOT_ID = re.compile(rb"<(?:\w+:)?bml\b[^>]*?\sid\s*=\s*[\"']([^\"']{0,200})[\"']")
+_FEEDBACK_ID = re.compile(r"\sid\s*=\s*[\"']([^\"']*)[\"']")
+
+
+def _guess_block_id(text: str) -> str:
+    """The root's ``id`` of a document the parser refused, for the warning."""
+    match = _ROOT_ID.search(text[:4096].encode("utf-8", "replace"))
+    return match.group(1).decode("utf-8", "replace") if match else ""
+
+
+def _is_block_end(feedback: FeedbackLike) -> bool:
+    """True for the ``blockProgress`` that says a block ended (id ``b:end``)."""
+    if feedback.kind != "blockProgress":
+        return False
+    match = _FEEDBACK_ID.search(feedback.xml)
+    return match is not None and match.group(1).endswith(":end")
+
+
+class Stage:
+    """Characters and their sessions; see the module docstring.
+
+    ``make_session(character_id)`` builds a session (the real one is
+    ``Session(character_id, face)``); ``default_character`` receives BML that
+    names no character.
+    """
+
+    def __init__(
+        self,
+        make_session: SessionFactory,
+        limits: ServiceLimits = DEFAULT_LIMITS,
+        default_character: str = "default",
+    ) -> None:
+        if not valid_character_id(default_character):
+            raise ValueError(f"invalid default character id {default_character!r}")
+        self.make_session = make_session
+        self.limits = limits
+        self.default_character = default_character
+        self.characters: dict[str, Character] = {}
+        self.now = 0.0  # the latest time given to any session, seconds
+        self._parse_limits = Limits(
+            max_bytes=limits.message_bytes, max_behaviours=limits.behaviours_per_block
+        )
+
+    # -- time -------------------------------------------------------------------
+
+    def _advance(self, now: float) -> float:
+        self.now = max(self.now, now)
+        return self.now
+
+    # -- characters -------------------------------------------------------------
+
+    def character(self, character_id: str) -> Character:
+        """The character named ``character_id``, made on first use.
+
+        Raises :class:`LimitExceeded` when ``limits.characters`` exist
+        already, :class:`PeerError` for an id that cannot name one.
+        """
+        found = self.characters.get(character_id)
+        if found is not None:
+            return found
+        if not valid_character_id(character_id):
+            raise PeerError(f"invalid character id {character_id[:80]!r}")
+        if len(self.characters) >= self.limits.characters:
+            raise LimitExceeded(
+                f"limit of {self.limits.characters} characters reached; "
+                f"character {character_id!r} not created"
+            )
+        made = Character(character_id, self.make_session(character_id))
+        self.characters[character_id] = made
+        return made
+
+    # -- submitting -------------------------------------------------------------
+
+    def submit_bml(
+        self, text: str, now: float, *, character: str | None = None, fallback: str | None = None
+    ) -> SubmitResult:
+        """Hand a BML document to its character's session at ``now`` seconds.
+
+        Never raises for bad input: refusals come back as a ``warningFeedback``
+        and a ``rejected`` :class:`BlockEvent`.
+        """
+        now = self._advance(now)
+        default = fallback or self.default_character
+        try:
+            parsed = parse_bml(text, limits=self._parse_limits)
+        except BmlError as exc:
+            block_id = _guess_block_id(text)
+            target = character or default
+            return self._refuse(target, block_id, now, exc.warning_type, self._describe(exc))
+        block = parsed.block
+        target = character or block.character_id or default
+        try:
+            found = self.character(target)
+        except PeerError as exc:
+            return self._refuse(target, block.id, now, exc.warning_type, exc.message)
+        if len(found.open_blocks) >= self.limits.queued_blocks:
+            return self._refuse(
+                target,
+                block.id,
+                now,
+                LimitExceeded.warning_type,
+                f"limit of {self.limits.queued_blocks} queued blocks reached for "
+                f"character {target!r}; block {block.id!r} refused",
+            )
+        messages: list[Outgoing] = []
+        try:
+            found.session.receive_bml(text, now)
+        except RealizerError as exc:
+            # The contract says sessions queue warnings; a session that raises
+            # is answered the same way, and the service keeps going.
+            kind = getattr(exc, "warning_type", "CANNOT_CREATE_BEHAVIOR")
+            messages.extend(self._warning(target, block.id, now, str(kind), str(exc)))
+        produced = found.session.take_feedback()
+        accepted = any(
+            fb.block_id == block.id and fb.kind in ("prediction", "blockProgress")
+            for fb in produced
+        )
+        if accepted:
+            found.open_blocks[block.id] = now
+            messages.append(BlockEvent(target, block.id, "accepted", now))
+        messages.extend(self._route(found, produced))
+        if not accepted:
+            messages.append(BlockEvent(target, block.id, "rejected", now))
+        return SubmitResult(target, block.id, accepted, tuple(messages))
+
+    def interrupt(self, character_id: str, block_id: str, now: float) -> tuple[Outgoing, ...]:
+        """Interrupt ``block_id`` of ``character_id`` at ``now`` seconds."""
+        now = self._advance(now)
+        found = self.characters.get(character_id)
+        if found is None:
+            return tuple(
+                self._warning(
+                    character_id, block_id, now, "NO_SUCH_TARGET", f"no character {character_id!r}"
+                )
+            )
+        if block_id in found.open_blocks:
+            found.interrupting.add(block_id)
+        messages: list[Outgoing] = []
+        try:
+            found.session.interrupt(block_id, now)
+        except RealizerError as exc:
+            messages.extend(self._warning(character_id, block_id, now, "NO_SUCH_TARGET", str(exc)))
+        messages.extend(self._route(found, found.session.take_feedback()))
+        return tuple(messages)
+
+    def interrupt_all(self, now: float) -> tuple[Outgoing, ...]:
+        """Interrupt every open block of every character (at shutdown)."""
+        messages: list[Outgoing] = []
+        for found in list(self.characters.values()):
+            for block_id in list(found.open_blocks):
+                messages.extend(self.interrupt(found.id, block_id, now))
+        return tuple(messages)
+
+    # -- the clock --------------------------------------------------------------
+
+    def tick(self, now: float) -> list[CharacterTick]:
+        """Advance every session to ``now`` seconds; one entry per character."""
+        now = self._advance(now)
+        ticks: list[CharacterTick] = []
+        for found in self.characters.values():
+            found.session.tick(now)
+            messages = self._route(found, found.session.take_feedback())
+            ticks.append(CharacterTick(found.id, now, found.session.frame(now), tuple(messages)))
+        return ticks
+
+    # -- helpers ----------------------------------------------------------------
+
+    def _route(self, found: Character, produced: Iterable[FeedbackLike]) -> list[Outgoing]:
+        messages: list[Outgoing] = []
+        for fb in produced:
+            messages.append(WireFeedback(found.id, fb.kind, fb.block_id, fb.time, fb.xml))
+            if _is_block_end(fb) and fb.block_id in found.open_blocks:
+                del found.open_blocks[fb.block_id]
+                state: BlockState = "interrupted" if fb.block_id in found.interrupting else "done"
+                found.interrupting.discard(fb.block_id)
+                messages.append(BlockEvent(found.id, fb.block_id, state, fb.time))
+        return messages
+
+    def _warning(
+        self, character: str, block_id: str, now: float, warning_type: str, text: str
+    ) -> list[Outgoing]:
+        xml = warning_feedback_xml(block_id, character, warning_type, text)
+        return [WireFeedback(character, "warning", block_id, now, xml)]
+
+    def _refuse(
+        self, character: str, block_id: str, now: float, warning_type: str, text: str
+    ) -> SubmitResult:
+        messages = [
+            *self._warning(character, block_id, now, warning_type, text),
+            BlockEvent(character, block_id, "rejected", now),
+        ]
+        return SubmitResult(character, block_id, False, tuple(messages))
+
+    @staticmethod
+    def _describe(exc: BmlError) -> str:
+        where = f"line {exc.line}, column {exc.column}: " if exc.line else ""
+        return f"{where}{exc.message}"
+
+
+class FrameEncoder:
+    """msgpack bytes of one character's frames, per kind of viewer.
+
+    ``face`` gives the neutral pose and triangles; ``deform(face, vector)``
+    the (n, 3) vertices for a (68,) FAP vector. The face is deformed only
+    when some viewer wants vertices and the FAPs changed since the last
+    deformation.
+    """
+
+    def __init__(
+        self,
+        character_id: str,
+        face: FaceLike,
+        deform: Deformer,
+        fps: float,
+        colours: npt.NDArray[np.uint8] | None = None,
+    ) -> None:
+        self.character_id = character_id
+        self.face = face
+        self.deform = deform
+        self.neutral = np.asarray(face.vertices, dtype=np.float64)
+        self.mesh_bytes = codec.pack(
+            codec.mesh_message(character_id, self.neutral, face.faces, colours, fps)
+        )
+        self._vector: npt.NDArray[np.float64] | None = None
+        self._vertices32: bytes | None = None
+        self._delta: DeltaPayload | None = None
+        self.deformations = 0  # how many times the face was deformed (for tests)
+
+    def encode(
+        self, number: int, time: float, frame: FrameLike, wanted: Iterable[ViewOptions]
+    ) -> dict[ViewOptions, bytes]:
+        """One frame's bytes for each distinct :class:`ViewOptions` wanted."""
+        wanted = set(wanted)
+        if not wanted:
+            return {}
+        mask = np.asarray(frame.mask, dtype=bool)
+        values = np.asarray(frame.values, dtype=np.float64)
+        fap = codec.fap_payload(values, mask)
+        if any(options.vertices != "none" for options in wanted):
+            self._update_vertices(np.where(mask, values, 0.0))
+        return {
+            options: codec.pack(
+                codec.frame_message(
+                    self.character_id,
+                    number,
+                    time,
+                    options,
+                    fap=fap,
+                    vertices=self._vertices32,
+                    delta=self._delta,
+                )
+            )
+            for options in wanted
+        }
+
+    def _update_vertices(self, vector: npt.NDArray[np.float64]) -> None:
+        if self._vector is not None and np.array_equal(vector, self._vector):
+            return
+        vertices = np.asarray(self.deform(self.face, vector), dtype=np.float64)
+        self.deformations += 1
+        self._vector = vector
+        self._vertices32 = np.ascontiguousarray(vertices, dtype="<f4").tobytes()
+        self._delta = codec.delta_payload(vertices, self.neutral)

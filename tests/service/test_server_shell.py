@@ -1,0 +1,147 @@
+"""The asyncio shell with a test double of the session: HTTP on the same
+port, tokens, connection-level refusals, the viewer mailbox.
+
+The behaviour of the whole realizer over the wire is checked with the real
+session in test_end_to_end.py.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+
+import pytest
+from websockets.asyncio.client import connect
+from websockets.exceptions import ConnectionClosed, InvalidStatus
+
+from realizer import __version__
+from realizer.service import codec
+from realizer.service.errors import ConfigError
+from realizer.service.limits import ServiceLimits
+from realizer.service.server import FaceAssets, ServiceConfig, Viewer
+from tests.service.conftest import UNIT
+from tests.service.doubles import FakeFace, FakeSession, fake_deform, smile_bml
+from tests.service.harness import http_get, http_json, running_service
+
+ASSETS = FaceAssets(FakeFace(), fake_deform)
+
+
+def test_health_version_and_the_viewer_page_are_plain_http_on_the_same_port() -> None:
+    async def scenario() -> None:
+        async with running_service(FakeSession, ASSETS) as service:
+            health = await http_json(service.port, "/health")
+            version = await http_json(service.port, "/version")
+            status, kind, page = await http_get(service.port, "/")
+            missing, _, _ = await http_get(service.port, "/../etc/passwd")
+        assert health["status"] == "ok" and health["fps"] == 60.0
+        assert version == {"realizer": __version__, "protocol": 1, "fps": 60.0}
+        assert status == 200 and kind.startswith("text/html") and b"<canvas" in page
+        assert missing == 404
+
+    asyncio.run(scenario())
+
+
+def test_without_tokens_the_service_refuses_a_public_address() -> None:
+    with pytest.raises(ConfigError, match="without tokens"):
+        ServiceConfig(host="0.0.0.0")
+    assert ServiceConfig(host="0.0.0.0", view_token="v").host == "0.0.0.0"
+    assert ServiceConfig(host="::1").host == "::1"
+
+
+def test_a_view_token_may_view_but_not_submit_and_no_token_may_do_neither() -> None:
+    async def scenario() -> None:
+        async with running_service(
+            FakeSession, ASSETS, submit_token="s3cret", view_token="look"
+        ) as service:
+            base = f"ws://127.0.0.1:{service.port}"
+            async with connect(f"{base}/view?token=look") as viewer:
+                assert codec.unpack(await viewer.recv())["type"] == "mesh"
+            async with connect(
+                f"{base}/bml", additional_headers={"Authorization": "Bearer s3cret"}
+            ) as submitter:
+                await submitter.send(smile_bml())
+                assert "predictionFeedback" in await submitter.recv()
+            for path, status in (("/bml?token=look", 403), ("/bml", 401), ("/view", 401)):
+                with pytest.raises(InvalidStatus) as refused:
+                    async with connect(base + path):
+                        pass
+                assert refused.value.response.status_code == status
+
+    asyncio.run(scenario())
+
+
+def test_binary_sent_to_the_submitter_endpoint_closes_it_with_1003_and_a_reason() -> None:
+    async def scenario() -> None:
+        async with running_service(FakeSession, ASSETS) as service:
+            async with connect(f"ws://127.0.0.1:{service.port}/bml") as submitter:
+                await submitter.send(b"\x00\x01")
+                with pytest.raises(ConnectionClosed):
+                    await asyncio.wait_for(submitter.recv(), 5 * UNIT)
+            assert submitter.close_code == 1003 and "text" in (submitter.close_reason or "")
+
+    asyncio.run(scenario())
+
+
+def test_viewers_over_the_per_character_limit_are_closed_with_1013() -> None:
+    async def scenario() -> None:
+        limits = ServiceLimits(viewers_per_character=1)
+        async with running_service(FakeSession, ASSETS, limits=limits) as service:
+            base = f"ws://127.0.0.1:{service.port}/view?character=Alice"
+            async with connect(base) as first, connect(base) as second:
+                assert codec.unpack(await first.recv())["type"] == "mesh"
+                with pytest.raises(ConnectionClosed):
+                    await asyncio.wait_for(second.recv(), 5 * UNIT)
+                assert second.close_code == 1013
+                assert "1 viewers per character" in (second.close_reason or "")
+
+    asyncio.run(scenario())
+
+
+def test_a_bad_subscribe_is_answered_with_an_error_message_and_the_viewer_goes_on() -> None:
+    async def scenario() -> None:
+        async with (
+            running_service(FakeSession, ASSETS) as service,
+            connect(f"ws://127.0.0.1:{service.port}/view") as viewer,
+        ):
+
+            async def next_message() -> dict[str, object]:
+                return codec.unpack(await asyncio.wait_for(viewer.recv(), 5 * UNIT))
+
+            assert (await next_message())["type"] == "mesh"
+            await viewer.send(json.dumps({"type": "subscribe", "vertices": "png"}))
+            while (await next_message())["type"] != "error":
+                pass
+            await viewer.send(json.dumps({"type": "subscribe", "character": "Bob"}))
+            while (message := await next_message())["type"] != "mesh":
+                pass
+            frame = await next_message()
+            assert message["character"] == "Bob" and frame["character"] == "Bob"
+
+    asyncio.run(scenario())
+
+
+def test_the_submitter_json_mode_says_welcome_and_reports_block_states() -> None:
+    async def scenario() -> None:
+        async with (
+            running_service(FakeSession, ASSETS) as service,
+            connect(f"ws://127.0.0.1:{service.port}/bml?format=json") as submitter,
+        ):
+            welcome = json.loads(await submitter.recv())
+            await submitter.send(json.dumps({"type": "bml", "bml": smile_bml("s1")}))
+            received: list[dict[str, object]] = []
+            while not received or received[-1].get("state") not in ("done", "rejected"):
+                received.append(json.loads(await asyncio.wait_for(submitter.recv(), 5 * UNIT)))
+        assert welcome["type"] == "welcome" and welcome["limits"]["queued_blocks"] == 32
+        states = [m["state"] for m in received if m["type"] == "block"]
+        kinds = [m["kind"] for m in received if m["type"] == "feedback"]
+        assert states == ["accepted", "done"]
+        assert kinds == ["prediction", "blockProgress", "blockProgress"]
+
+    asyncio.run(scenario())
+
+
+def test_a_viewer_mailbox_keeps_only_the_newest_frame() -> None:
+    viewer = Viewer(connection=None, character="a", options=None)  # type: ignore[arg-type]
+    for frame in (b"1", b"2", b"3"):
+        viewer.offer(frame)
+    assert viewer.latest == b"3" and viewer.replaced == 2 and viewer.offered == 3
