@@ -691,6 +691,50 @@ def target_table(
     )
 
 
+def surface_distances(
+    head: HeadMesh, avoid: IntArray, sources: list[int], apart: tuple[IntArray, IntArray]
+) -> FloatArray:
+    """Shortest distances (len(sources), n) along the skin's edges from each
+    source vertex, not passing through the vertices ``avoid`` nor along an
+    edge from one of the sets ``apart`` to the other."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    q = head.skin_quads
+    edges = np.concatenate([q[:, [0, 1]], q[:, [1, 2]], q[:, [2, 3]], q[:, [3, 0]]])
+    edges = edges[~np.isin(edges, avoid).any(axis=1)]
+    a, b = np.isin(edges, apart[0]), np.isin(edges, apart[1])
+    edges = edges[~((a[:, 0] & b[:, 1]) | (b[:, 0] & a[:, 1]))]
+    length = np.linalg.norm(head.vertices[edges[:, 0]] - head.vertices[edges[:, 1]], axis=1)
+    n = len(head.vertices)
+    graph = coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
+    distances: FloatArray = dijkstra(graph, directed=False, indices=sources)
+    return distances
+
+
+def mouth_inside(head: HeadMesh, lip_contours: IntArray, lower_inner: int) -> IntArray:
+    """The skin of the mouth's inside: hm08's mouth is a closed pocket of
+    skin that meets the face only at the lips' inner contours, so the pocket
+    is the part of the skin that the contours cut off, found from the first
+    vertex behind 2.3 on the profile."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    q = head.skin_quads
+    edges = np.concatenate([q[:, [0, 1]], q[:, [1, 2]], q[:, [2, 3]], q[:, [3, 0]]])
+    cut = np.isin(edges, lip_contours).any(axis=1)
+    edges = edges[~cut]
+    n = len(head.vertices)
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    chain = midline_chain(head)
+    inside = chain[chain.index(lower_inner) + 1]
+    pocket = np.flatnonzero(labels == labels[inside])
+    if len(pocket) > len(head.part("skin")) // 3:
+        raise ValueError("the lips' inner contours do not close the mouth off")
+    return pocket
+
+
 def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig:
     """Feature points, parts, vertex masks and one or more deformers for
     every FAP 3..68, in the classes of :mod:`realizer.face.model`.
@@ -703,6 +747,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     as they stretch, seed 002 section 2.1.3.1's example of FAP 54).
     """
     from realizer.face.model import (
+        CosineDeformer,
         DilateDeformer,
         EaseDeformer,
         RollDeformer,
@@ -745,21 +790,31 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     mouth_line = (fp["2.2"][1] + fp["2.3"][1]) / 2
     lower_lip = lower_face[v[lower_face, 1] < mouth_line + 0.001]
     upper_lip = upper_face[v[upper_face, 1] > mouth_line - 0.001]
-    # On the lips themselves (inside the outer contour's box) the meeting
-    # line decides, not jawOpen, which drags the upper lip's sides a little.
+    # On the lips themselves (inside the outer contour's box) jawOpen is no
+    # guide (it drags the upper lip's sides a little) and neither is height
+    # (the pressed lips' inner edges cross the meeting line). What holds is
+    # the surface: outside the mouth's pocket and off the line where they
+    # touch, the two lips meet only at the corners, so a lip vertex belongs
+    # to the lip whose outer midpoint (8.1 or 8.2) is nearer along the skin.
+    topo = SkinTopology(head.skin_quads, len(v))
+    upper_loop = np.array(topo.edge_loop(fp_index["2.2"], np.array([1.0, 0.0, 0.0]), v_dm))
+    lower_loop = np.array(topo.edge_loop(fp_index["2.3"], np.array([1.0, 0.0, 0.0]), v_dm))
+    parts["mouth_inside"] = mouth_inside(head, np.union1d(upper_loop, lower_loop), fp_index["2.3"])
     on_lips = skin[
         (np.abs(v[skin, 0]) <= fp["8.3"][0] * 1.05)
         & (v[skin, 1] > fp["8.2"][1] - 0.003)
         & (v[skin, 1] < fp["8.1"][1] + 0.003)
         & (v[skin, 2] > fp["8.3"][2] - 0.01)
     ]
-    upper_lip = np.union1d(np.setdiff1d(upper_lip, on_lips), on_lips[v[on_lips, 1] > mouth_line])
-    lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), on_lips[v[on_lips, 1] <= mouth_line])
-    # The lips' inner contours (edge loops through 2.2 and 2.3) belong to
-    # their own lip, whatever jawOpen does with them.
-    topo = SkinTopology(head.skin_quads, len(v))
-    upper_loop = np.array(topo.edge_loop(fp_index["2.2"], np.array([1.0, 0.0, 0.0]), v_dm))
-    lower_loop = np.array(topo.edge_loop(fp_index["2.3"], np.array([1.0, 0.0, 0.0]), v_dm))
+    on_lips = np.setdiff1d(on_lips, parts["mouth_inside"])
+    to_upper, to_lower = surface_distances(
+        head, parts["mouth_inside"], [fp_index["8.1"], fp_index["8.2"]], (upper_loop, lower_loop)
+    )
+    upper_side = on_lips[to_upper[on_lips] < to_lower[on_lips]]
+    lower_side = on_lips[to_upper[on_lips] >= to_lower[on_lips]]
+    upper_lip = np.union1d(np.setdiff1d(upper_lip, on_lips), upper_side)
+    lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), lower_side)
+    # The inner contours themselves belong to their own lip.
     upper_lip = np.setdiff1d(np.union1d(upper_lip, upper_loop), lower_loop)
     lower_lip = np.setdiff1d(np.union1d(lower_lip, lower_loop), upper_loop)
     masks: dict[int, IntArray] = {}
@@ -790,6 +845,24 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             )
         )
 
+    def cosine(
+        fap: int,
+        direction: tuple[float, float, float],
+        size: float,
+        scale: tuple[float, float, float],
+        mask: IntArray,
+    ) -> None:
+        masks[fap] = mask
+        deformers.append(
+            CosineDeformer(
+                fap=fap,
+                direction=direction,
+                size=round(size, 5),
+                scale=scale,
+                use_vertex_mask=True,
+            )
+        )
+
     mw0 = dist("8.3", "8.4")
     mns0 = float(fp["9.15"][1] - fp["2.2"][1])
     down, up, fwd = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
@@ -812,10 +885,11 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     for fap, name, axis in ((3, "jawOpen", down), (14, "jawForward", fwd), (15, "jawRight", right)):
         deformers.append(target_table(fap, targets[name], to_head, fp_index["2.1"], axis, still))
 
-    # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): each
-    # midpoint's sphere reaches its neighbours; corners reach a third of the
-    # mouth's width and move both lips.
-    lip_size = 0.55 * mw0
+    # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): the
+    # midpoints use Xface's raised cosine, whose flat top keeps a lowered lip
+    # round instead of pointed, reaching past the neighbouring midpoints;
+    # corners reach 40 % of the mouth's width and move both lips.
+    lip_size = 0.7 * mw0
     lip_scale = (1.0, 0.6, 1.0)
     for fap, _point, direction, mask in (
         (4, "2.2", down, upper_lip),
@@ -831,9 +905,9 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         (57, "8.7", up, lower_lip),
         (58, "8.8", up, lower_lip),
     ):
-        ease(fap, direction, lip_size, lip_scale, 0, mask)
-    ease(16, fwd, lip_size, lip_scale, 0, lower_lip)
-    ease(17, fwd, lip_size, lip_scale, 0, upper_lip)
+        cosine(fap, direction, lip_size, lip_scale, mask)
+    cosine(16, fwd, lip_size, lip_scale, lower_lip)
+    cosine(17, fwd, lip_size, lip_scale, upper_lip)
     corner_size = 0.4 * mw0
     for fap, direction in (
         (6, (1.0, 0.0, -0.3)),
@@ -1007,6 +1081,7 @@ def vertex_rgb(head: HeadMesh, rig: Rig) -> npt.NDArray[np.uint8]:
         parts = colour_parts
 
     rgb = render.vertex_colours(_Parts(), lip_vertices=lips)
+    rgb[rig.parts["mouth_inside"]] = render.MOUTH_RGB
     out: npt.NDArray[np.uint8] = np.round(rgb * 255).astype(np.uint8)
     return out
 
