@@ -275,3 +275,7 @@ def test_the_inside_of_the_mouth_is_its_own_part_behind_the_lips(face: Face) -> 
     lips_front = min(fp(face, "2.2")[2], fp(face, "2.3")[2])
     assert face.vertices[inside, 2].max() <= lips_front + 1e-6
     assert not np.isin([face.feature_vertex(n) for n in ("2.2", "2.3", "8.1", "8.2")], inside).any()
+
+
+def test_the_default_face_is_called_default(face: Face) -> None:
+    assert face.name == "default"
