@@ -455,19 +455,26 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     fold = int(upper_half[np.argmin(cz[upper_half])])
     boss = np.arange(bottom + 1, fold)
     fp["2.10"] = int(chain[boss[np.argmax(cz[boss])]])
-    # Inner lip contours: hm08's edge loops through 2.2 and 2.3 run along the
-    # lips' meeting line; their lateral ends are the inner corners.
+    # Inner lip contours: hm08's edge loop through 2.2 runs along the
+    # lips' meeting line; its lateral ends are the inner corners.
     upper_loop = np.array(topo.edge_loop(fp["2.2"], x_axis, v))
-    lower_loop = np.array(topo.edge_loop(fp["2.3"], x_axis, v))
     fp["2.4"] = int(upper_loop[np.argmax(v[upper_loop, 0])])
     fp["2.5"] = int(upper_loop[np.argmin(v[upper_loop, 0])])
     for name, loop, corner, mid in (
         ("2.6", upper_loop, "2.4", "2.2"),
         ("2.7", upper_loop, "2.5", "2.2"),
-        ("2.8", lower_loop, "2.4", "2.3"),
-        ("2.9", lower_loop, "2.5", "2.3"),
     ):
         fp[name] = nearest(v, loop, (v[fp[corner]] + v[fp[mid]]) / 2, (0,))
+    # The loop through 2.3 runs partly along the upper lip's inside, where
+    # the pressed lips fold in; the lower lip's inner contour is rather the
+    # top edge of what moves with the jaw (CC0 target jawOpen, at least half
+    # as far as 2.3), on the front of the lips.
+    jaw = moved("jawOpen")
+    lower_front = skin[(jaw[skin] >= 0.5 * jaw[fp["2.3"]]) & (v[skin, 2] > v[fp["2.3"], 2] - 0.03)]
+    for name, corner in (("2.8", "2.4"), ("2.9", "2.5")):
+        x = (v[fp[corner], 0] + v[fp["2.3"], 0]) / 2
+        column = lower_front[np.abs(v[lower_front, 0] - x) < 0.03]
+        fp[name] = int(column[np.argmax(v[column, 1])])
     # Outer lip contour: the edge loop through 8.2 goes round the whole mouth
     # along the lips' outline (the vermilion border).
     outer = np.array(topo.edge_loop(fp["8.2"], x_axis, v))
@@ -696,27 +703,6 @@ def target_table(
     )
 
 
-def surface_distances(
-    head: HeadMesh, avoid: IntArray, sources: list[int], apart: tuple[IntArray, IntArray]
-) -> FloatArray:
-    """Shortest distances (len(sources), n) along the skin's edges from each
-    source vertex, not passing through the vertices ``avoid`` nor along an
-    edge from one of the sets ``apart`` to the other."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import dijkstra
-
-    q = head.skin_quads
-    edges = np.concatenate([q[:, [0, 1]], q[:, [1, 2]], q[:, [2, 3]], q[:, [3, 0]]])
-    edges = edges[~np.isin(edges, avoid).any(axis=1)]
-    a, b = np.isin(edges, apart[0]), np.isin(edges, apart[1])
-    edges = edges[~((a[:, 0] & b[:, 1]) | (b[:, 0] & a[:, 1]))]
-    length = np.linalg.norm(head.vertices[edges[:, 0]] - head.vertices[edges[:, 1]], axis=1)
-    n = len(head.vertices)
-    graph = coo_matrix((length, (edges[:, 0], edges[:, 1])), shape=(n, n)).tocsr()
-    distances: FloatArray = dijkstra(graph, directed=False, indices=sources)
-    return distances
-
-
 def mouth_inside(head: HeadMesh, lip_contours: IntArray, lower_inner: int) -> IntArray:
     """The skin of the mouth's inside: hm08's mouth is a closed pocket of
     skin that meets the face only at the lips' inner contours, so the pocket
@@ -795,12 +781,11 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     mouth_line = (fp["2.2"][1] + fp["2.3"][1]) / 2
     lower_lip = lower_face[v[lower_face, 1] < mouth_line + 0.001]
     upper_lip = upper_face[v[upper_face, 1] > mouth_line - 0.001]
-    # On the lips themselves (inside the outer contour's box) jawOpen is no
-    # guide (it drags the upper lip's sides a little) and neither is height
-    # (the pressed lips' inner edges cross the meeting line). What holds is
-    # the surface: outside the mouth's pocket and off the line where they
-    # touch, the two lips meet only at the corners, so a lip vertex belongs
-    # to the lip whose outer midpoint (8.1 or 8.2) is nearer along the skin.
+    # On the lips themselves (inside the outer contour's box) height is no
+    # guide (the pressed lips' inner edges cross the meeting line) and the
+    # 10 % rule above is too loose (jawOpen drags the upper lip's sides a
+    # little). There, a vertex is the lower lip's when jawOpen moves it at
+    # least half as far as it moves 2.3, the lower lip's inner midpoint.
     topo = SkinTopology(head.skin_quads, len(v))
     upper_loop = np.array(topo.edge_loop(fp_index["2.2"], np.array([1.0, 0.0, 0.0]), v_dm))
     lower_loop = np.array(topo.edge_loop(fp_index["2.3"], np.array([1.0, 0.0, 0.0]), v_dm))
@@ -811,17 +796,9 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         & (v[skin, 1] < fp["8.1"][1] + 0.003)
         & (v[skin, 2] > fp["8.3"][2] - 0.01)
     ]
-    on_lips = np.setdiff1d(on_lips, parts["mouth_inside"])
-    to_upper, to_lower = surface_distances(
-        head, parts["mouth_inside"], [fp_index["8.1"], fp_index["8.2"]], (upper_loop, lower_loop)
-    )
-    upper_side = on_lips[to_upper[on_lips] < to_lower[on_lips]]
-    lower_side = on_lips[to_upper[on_lips] >= to_lower[on_lips]]
-    upper_lip = np.union1d(np.setdiff1d(upper_lip, on_lips), upper_side)
-    lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), lower_side)
-    # The inner contours themselves belong to their own lip.
-    upper_lip = np.setdiff1d(np.union1d(upper_lip, upper_loop), lower_loop)
-    lower_lip = np.setdiff1d(np.union1d(lower_lip, lower_loop), upper_loop)
+    with_jaw = jaw_moves[on_lips] >= 0.5 * jaw_moves[fp_index["2.3"]]
+    upper_lip = np.union1d(np.setdiff1d(upper_lip, on_lips), on_lips[~with_jaw])
+    lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), on_lips[with_jaw])
     masks: dict[int, IntArray] = {}
     deformers: list[Any] = []
 
@@ -895,7 +872,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     # round instead of pointed, reaching past the neighbouring midpoints;
     # corners reach 40 % of the mouth's width and move both lips.
     lip_size = 0.7 * mw0
-    lip_scale = (1.0, 0.6, 1.0)
+    lip_scale = (1.0, 0.8 * mns0 / lip_size, 1.0)  # reaches 0.8 MNS0 up and down: not the nose
     for fap, _point, direction, mask in (
         (4, "2.2", down, upper_lip),
         (8, "2.6", down, upper_lip),
