@@ -13,6 +13,7 @@ The public names are imported lazily, so ``import realizer.face`` stays cheap:
 * :func:`deform`, :class:`FaceRig` -- :mod:`realizer.face.deform`
 * :func:`load_face`, :func:`save_face` -- :mod:`realizer.face.paramfile`
 * :func:`build_test_head` -- :mod:`realizer.face.testhead`
+* :func:`load_default_face` -- :mod:`realizer.face.default`
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ _EXPORTS = {
     "load_face": "paramfile",
     "save_face": "paramfile",
     "build_test_head": "testhead",
+    "load_default_face": "default",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -279,3 +279,9 @@ def test_the_inside_of_the_mouth_is_its_own_part_behind_the_lips(face: Face) -> 
 
 def test_the_default_face_is_called_default(face: Face) -> None:
     assert face.name == "default"
+
+
+def test_the_default_face_is_exported_by_the_face_package(face: Face) -> None:
+    import realizer.face
+
+    assert realizer.face.load_default_face() is face
