@@ -16,6 +16,7 @@ The public names are imported lazily, so ``import realizer.face`` stays cheap:
 * :func:`load_default_face` -- :mod:`realizer.face.default` (the MakeHuman head)
 * :func:`load_face`, :func:`save_face` -- :mod:`realizer.face.paramfile`
 * :func:`build_test_head` -- :mod:`realizer.face.testhead`
+* :func:`load_default_face` -- :mod:`realizer.face.default`
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ _EXPORTS = {
     "load_face": "paramfile",
     "save_face": "paramfile",
     "build_test_head": "testhead",
+    "load_default_face": "default",
 }
 
 __all__ = sorted(_EXPORTS)
