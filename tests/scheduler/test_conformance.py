@@ -13,8 +13,8 @@ Documents whose header asks for a removal or an error are in
 
 from __future__ import annotations
 
+import itertools
 import re
-from pathlib import Path
 
 import pytest
 
@@ -248,7 +248,7 @@ def value(plan: TimedPlan, term: str) -> float:
 def check(plan: TimedPlan, line: str) -> None:
     parts = _RELATION.split(line)
     values = [value(plan, term) for term in parts[::2]]
-    for (left, right), op in zip(zip(values, values[1:], strict=False), parts[1::2], strict=True):
+    for (left, right), op in zip(itertools.pairwise(values), parts[1::2], strict=True):
         held = {
             "=": abs(left - right) <= TOLERANCE,
             "<": left < right - TOLERANCE,
@@ -278,10 +278,10 @@ def test_document_keeps_canonical_order_and_the_block_start(name: str) -> None:
     for scheduled in plan.behaviours:
         model = plan.models[scheduled.id]
         times = [scheduled.times[sync] for sync in model.syncs]
-        assert all(b >= a - TOLERANCE for a, b in zip(times, times[1:], strict=False)), scheduled.id
+        assert all(b >= a - TOLERANCE for a, b in itertools.pairwise(times)), scheduled.id
         assert min(times) >= plan.start - TOLERANCE
         for (sync_a, sync_b), phase in zip(
-            zip(model.syncs, model.syncs[1:], strict=False), model.phases, strict=True
+            itertools.pairwise(model.syncs), model.phases, strict=True
         ):
             duration = scheduled.times[sync_b] - scheduled.times[sync_a]
             assert phase.minimum - TOLERANCE <= duration <= phase.maximum + TOLERANCE
@@ -318,10 +318,14 @@ def test_a_behaviour_in_the_way_of_a_required_constraint_is_removed() -> None:
     # after_required.xml plus a required <before>: nod1's stroke must come
     # after speech1:sync4 and before speech1's start, which only the speech's
     # own (not required) timing prevents; the speech goes, with a warning.
-    text = FILES["after_required.xml"].read_text().replace(
-        "</bml>",
-        '<required><constraint id="early"><before ref="speech1:start">'
-        '<sync ref="nod1:stroke"/></before></constraint></required></bml>',
+    text = (
+        FILES["after_required.xml"]
+        .read_text()
+        .replace(
+            "</bml>",
+            '<required><constraint id="early"><before ref="speech1:start">'
+            '<sync ref="nod1:stroke"/></before></constraint></required></bml>',
+        )
     )
     plan = schedule_block(parse_bml(text).block, registry=EngineRegistry.standard())
     assert plan.dropped == {"speech1"}
@@ -331,13 +335,17 @@ def test_a_behaviour_in_the_way_of_a_required_constraint_is_removed() -> None:
 
 
 def test_required_constraints_that_contradict_each_other_fail_the_block() -> None:
-    text = FILES["testnod.xml"].read_text().replace(
-        "</bml>",
-        "<required>"
-        '<constraint id="one"><synchronize><sync ref="nod1:start"/><sync ref="1"/></synchronize>'
-        "</constraint>"
-        '<constraint id="two"><synchronize><sync ref="nod1:start"/><sync ref="2"/></synchronize>'
-        "</constraint></required></bml>",
+    text = (
+        FILES["testnod.xml"]
+        .read_text()
+        .replace(
+            "</bml>",
+            "<required>"
+            '<constraint id="one"><synchronize><sync ref="nod1:start"/><sync ref="1"/></synchronize>'
+            "</constraint>"
+            '<constraint id="two"><synchronize><sync ref="nod1:start"/><sync ref="2"/></synchronize>'
+            "</constraint></required></bml>",
+        )
     )
     with pytest.raises(SchedulingFailed) as caught:
         schedule_block(parse_bml(text).block, registry=EngineRegistry.standard())
@@ -348,13 +356,17 @@ def test_required_constraints_that_contradict_each_other_fail_the_block() -> Non
 
 
 def test_a_contradicting_constraint_that_is_not_required_is_dropped_by_name() -> None:
-    text = FILES["testnod.xml"].read_text().replace(
-        "</bml>",
-        "<required>"
-        '<constraint id="one"><synchronize><sync ref="nod1:start"/><sync ref="1"/></synchronize>'
-        "</constraint></required>"
-        '<constraint id="two"><synchronize><sync ref="nod1:start"/><sync ref="2"/></synchronize>'
-        "</constraint></bml>",
+    text = (
+        FILES["testnod.xml"]
+        .read_text()
+        .replace(
+            "</bml>",
+            "<required>"
+            '<constraint id="one"><synchronize><sync ref="nod1:start"/><sync ref="1"/></synchronize>'
+            "</constraint></required>"
+            '<constraint id="two"><synchronize><sync ref="nod1:start"/><sync ref="2"/></synchronize>'
+            "</constraint></bml>",
+        )
     )
     plan = schedule_block(parse_bml(text).block, registry=EngineRegistry.standard())
     assert plan.time_of("nod1", "start") == pytest.approx(1.0, abs=TOLERANCE)
