@@ -26,6 +26,8 @@ COMMANDS: tuple[str, ...] = (
     "serve",
     "send",
     "render",
+    "schedule",
+    "plot",
 )
 
 
