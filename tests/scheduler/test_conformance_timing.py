@@ -129,13 +129,13 @@ def test_behaviours_whose_timing_is_impossible_are_removed_with_a_warning(name: 
 
 
 def test_the_corpus_names_its_impossible_timings() -> None:
-    assert REMOVES == {
+    assert {
         "testnod_invalidtime.xml",
         "testspeech_invalidtime.xml",
         "testspeech_invalidtimesync.xml",
         "testspeech_invalidtimesync2.xml",
         "testspeech_endtimed2.xml",
-    }
+    } == REMOVES
 
 
 @pytest.mark.parametrize(
