@@ -134,8 +134,10 @@ def test_a_required_part_that_cannot_be_met_fails_the_block() -> None:
 def test_an_optional_constraint_is_dropped_with_a_warning_naming_it() -> None:
     session = Session()
     body = (
-        '<head id="a" lexeme="NOD" start="0" end="1"/><head id="b" lexeme="NOD" start="0" end="1"/>'
-        '<constraint id="impossible"><before ref="a:start"><sync ref="b:end"/></before></constraint>'
+        '<head id="a" lexeme="NOD" start="0" end="1"/>'
+        '<head id="b" lexeme="NOD" start="0" end="1"/>'
+        '<constraint id="impossible">'
+        '<before ref="a:start"><sync ref="b:end"/></before></constraint>'
     )
     plan = session.receive_bml(bml("b1", body), now=0.0)
     assert plan is not None and {b.id for b in plan.behaviours} == {"a", "b"}
