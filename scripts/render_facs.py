@@ -20,7 +20,7 @@ from PIL import Image
 # run from a checkout: the repository's package wins over an installed one
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from render_emotions import grid, label  # scripts/ is on sys.path when run as a script
+from render_emotions import grid, label, save  # scripts/ is on sys.path when run as a script
 
 
 def main() -> None:
@@ -51,7 +51,7 @@ def main() -> None:
     renderer.close()
     rows = [tiles[i : i + args.columns] for i in range(0, len(tiles), args.columns)]
     args.out.mkdir(parents=True, exist_ok=True)
-    grid(rows).save(args.out / "facs_aus.png")
+    save(grid(rows), args.out / "facs_aus.png")
     print(f"wrote {args.out / 'facs_aus.png'} ({len(tiles) - 1} AUs)")
 
 
