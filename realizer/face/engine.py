@@ -87,6 +87,7 @@ from realizer.face.tracks import (
     KeyframeAnimation,
     check_curve,
 )
+from realizer.scheduler.timing import Phase, TimingModel
 
 FACE_TYPES = ("faceLexeme", "faceFacs", "faceShift", "fap", "emotion", "viseme", "expression")
 HEAD_TYPES = ("head",)
@@ -274,10 +275,8 @@ class FaceEngine:
             )
         return TimingPreference(syncs, tuple(table))
 
-    def plan(self, behaviour: Behaviour) -> Any:
+    def plan(self, behaviour: Behaviour) -> TimingModel:
         """The scheduler's TimingModel for the behaviour (docs/interfaces.md)."""
-        from realizer.scheduler.timing import Phase, TimingModel
-
         preference = self.timing(behaviour)
         return TimingModel(
             syncs=preference.syncs,
