@@ -187,3 +187,13 @@ def test_default_limits_come_from_the_fap_table_of_seed_002() -> None:
     closing = FapAnimation(facs_to_faps(["43"]), Envelope(0, 0, 1, 1))
     values, _ = mix([closing, closing], 0.5, limits)
     assert values[18] == 1080.0
+
+
+def test_planning_refuses_what_cannot_be_realized_with_a_timing_model_error() -> None:
+    from realizer.scheduler.timing import TimingModelError
+
+    found = behaviours('<faceLexeme id="a" lexeme="SMIRK"/><faceLexeme id="b" lexeme="OPEN_LIPS"/>')
+    with pytest.raises(TimingModelError, match="SMIRK"):
+        ENGINE.plan(found["a"])
+    model = ENGINE.plan(found["b"])
+    assert model.syncs == ("start", "attackPeak", "relax", "end") and len(model.phases) == 3

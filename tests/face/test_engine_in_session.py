@@ -72,3 +72,19 @@ def test_a_replace_block_eases_the_old_face_out() -> None:
     session.tick(1.5)
     after = session.frame(1.5).values[58]
     assert before > easing > 0 and after == 0  # no jump: the smile fades over 0.2 s
+
+
+def test_behaviours_the_engine_cannot_realize_become_warnings_and_the_rest_plays() -> None:
+    session = Session("doctor")
+    block = HEADER.format(id="b") + (
+        '<faceLexeme id="a" lexeme="SMIRK" start="0" end="1"/>'
+        '<head id="h" lexeme="WOBBLE"/>'
+        '<rf:emotion id="e" word="boredom"/>'
+        '<faceLexeme id="c" lexeme="RAISE_BROWS" start="0" end="1"/></bml>'
+    )
+    assert session.receive_bml(block, 0.0) is not None
+    session.tick(0.5)
+    warnings = [f for f in session.take_feedback() if f.kind == "warning"]
+    assert sorted(f.xml.split('id="')[1].split('"')[0] for f in warnings) == ["b:a", "b:e", "b:h"]
+    assert all("CANNOT_CREATE_BEHAVIOR" in f.xml for f in warnings)
+    assert session.frame(0.5).mask[30]  # the brows still rise
