@@ -457,8 +457,14 @@ class FaceEngine:
     def _gaze(self, behaviour: Behaviour) -> FapConfiguration:
         data = load_engine_data()["gaze"]
         target = (behaviour.param("target") or "").strip().upper().replace("_", "")
-        direction_word = (behaviour.param("offsetDirection") or "").strip().upper()
-        angle = _number_param(behaviour, "offsetAngle", 0.0)
+        # the draft dialect (seed 000) names them direction and angle
+        direction_word = (
+            (behaviour.param("offsetDirection") or behaviour.param("direction") or "")
+            .strip()
+            .upper()
+        )
+        angle_name = "offsetAngle" if behaviour.param("offsetAngle") is not None else "angle"
+        angle = _number_param(behaviour, angle_name, 0.0)
         yaw = pitch = 0.0
         if target in DIRECTIONS:
             dy, dp = DIRECTIONS[target]
