@@ -87,3 +87,27 @@ def test_realizer_fap_sheet_writes_one_row_per_fap(tmp_path: Path) -> None:
     sheet = np.asarray(Image.open(out))
     rows = (len(load_sheet_entries()) + 1) // 2
     assert sheet.shape == (28 + rows * 32, 2 * (150 + 5 * 32), 3)
+
+
+@pytest.mark.opengl
+def test_realizer_face_reads_a_frame_of_a_fap_file(tmp_path: Path) -> None:
+    opengl_or_skip()
+    from realizer.face.fapfile import fap_file_from_frames, write_fap_file
+
+    values = np.zeros(68)
+    mask = np.zeros(68, dtype=bool)
+    values[[2, 30]] = (500, 300)
+    mask[[2, 30]] = True
+    write_fap_file(
+        tmp_path / "pose.fap",
+        fap_file_from_frames(
+            "pose", 25.0, [(np.zeros(68), np.zeros(68, dtype=bool)), (values, mask)]
+        ),
+    )
+    from_file = tmp_path / "from_file.png"
+    from_faps = tmp_path / "from_faps.png"
+    args = ["--size", "64", "-o"]
+    assert main(["face", str(tmp_path / "pose.fap"), "--frame", "1", *args, str(from_file)]) == 0
+    assert main(["face", "--faps", "3=500 31=300", *args, str(from_faps)]) == 0
+    assert np.array_equal(np.asarray(Image.open(from_file)), np.asarray(Image.open(from_faps)))
+    assert main(["face", str(tmp_path / "pose.fap"), "--frame", "2", *args, str(from_file)]) == 2
