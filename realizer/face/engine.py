@@ -87,6 +87,7 @@ from realizer.face.tracks import (
     KeyframeAnimation,
     check_curve,
 )
+from realizer.scheduler.timing import Phase, TimingModel, TimingModelError
 
 FACE_TYPES = ("faceLexeme", "faceFacs", "faceShift", "fap", "emotion", "viseme", "expression")
 HEAD_TYPES = ("head",)
@@ -274,11 +275,19 @@ class FaceEngine:
             )
         return TimingPreference(syncs, tuple(table))
 
-    def plan(self, behaviour: Behaviour) -> Any:
-        """The scheduler's TimingModel for the behaviour (docs/interfaces.md)."""
-        from realizer.scheduler.timing import Phase, TimingModel
+    def plan(self, behaviour: Behaviour) -> TimingModel:
+        """The scheduler's TimingModel for the behaviour (docs/interfaces.md).
 
-        preference = self.timing(behaviour)
+        The behaviour's parameters are checked here, before scheduling: one
+        the engine cannot realize (an unknown lexeme, emotion word, AU ...)
+        raises TimingModelError, which the scheduler turns into a
+        CANNOT_CREATE_BEHAVIOR warning while the rest of the block goes on.
+        """
+        try:
+            self.validate(behaviour)
+            preference = self.timing(behaviour)
+        except ConversionError as error:
+            raise TimingModelError(str(error)) from None
         return TimingModel(
             syncs=preference.syncs,
             phases=tuple(
@@ -287,6 +296,15 @@ class FaceEngine:
         )
 
     # --- what ------------------------------------------------------------------
+
+    def validate(self, behaviour: Behaviour) -> None:
+        """Raise ConversionError if the behaviour's parameters cannot be realized."""
+        if behaviour.type in FACE_TYPES:
+            self.configuration(behaviour)
+        elif behaviour.type in GAZE_TYPES:
+            self._gaze(behaviour)
+        elif behaviour.type == "head":
+            self._head_lexeme(behaviour)
 
     def configuration(self, behaviour: Behaviour) -> FapConfiguration:
         """The FAP values at full level of a face behaviour (not head or gaze)."""
@@ -353,8 +371,9 @@ class FaceEngine:
     ) -> FapAnimation | KeyframeAnimation | None:
         """The behaviour's animation at its solved sync ``times`` (global seconds).
 
-        Raises ConversionError for parameters it cannot realize (the session
-        answers with a warning); returns None for behaviours it does not handle.
+        Parameters were checked by :meth:`plan`; a behaviour that did not pass
+        it raises ConversionError here. Returns None for behaviours it does not
+        handle.
         """
         kind = behaviour.type
         if kind not in HANDLED_TYPES:
@@ -382,12 +401,8 @@ class FaceEngine:
     def _head(
         self, behaviour: Behaviour, times: Mapping[str, float], priority: int
     ) -> KeyframeAnimation:
-        lexeme = (behaviour.lexeme or behaviour.param("type") or "").strip().upper()
+        lexeme = self._head_lexeme(behaviour)
         table = load_engine_data()["head"]
-        if lexeme not in table:
-            raise ConversionError(
-                f"head {behaviour.id!r}: unknown lexeme {lexeme!r}; known: {', '.join(table)}"
-            )
         fap = int(table[lexeme]["fap"])
         amplitude = float(table[lexeme]["amplitude"]) * _number_param(behaviour, "amount", 0.5)
         strokes = [times[s] for s in _strokes(tuple(behaviour.syncs)) if s in times]
@@ -430,11 +445,26 @@ class FaceEngine:
             behaviour.id,
         )
 
+    def _head_lexeme(self, behaviour: Behaviour) -> str:
+        lexeme = (behaviour.lexeme or behaviour.param("type") or "").strip().upper()
+        table = load_engine_data()["head"]
+        if lexeme not in table:
+            raise ConversionError(
+                f"head {behaviour.id!r}: unknown lexeme {lexeme!r}; known: {', '.join(table)}"
+            )
+        return lexeme
+
     def _gaze(self, behaviour: Behaviour) -> FapConfiguration:
         data = load_engine_data()["gaze"]
         target = (behaviour.param("target") or "").strip().upper().replace("_", "")
-        direction_word = (behaviour.param("offsetDirection") or "").strip().upper()
-        angle = _number_param(behaviour, "offsetAngle", 0.0)
+        # the draft dialect (seed 000) names them direction and angle
+        direction_word = (
+            (behaviour.param("offsetDirection") or behaviour.param("direction") or "")
+            .strip()
+            .upper()
+        )
+        angle_name = "offsetAngle" if behaviour.param("offsetAngle") is not None else "angle"
+        angle = _number_param(behaviour, angle_name, 0.0)
         yaw = pitch = 0.0
         if target in DIRECTIONS:
             dy, dp = DIRECTIONS[target]
