@@ -126,24 +126,6 @@ DIRECTIONS: dict[str, tuple[float, float]] = {
 DEFAULT_TARGET_ANGLE_DEG = 20.0
 
 
-@dataclass(frozen=True, slots=True)
-class PhasePreference:
-    """Preferred duration (s), stretch weight and minimum (s) of one phase."""
-
-    preferred: float
-    weight: float = 1.0
-    minimum: float = 0.0
-    maximum: float = math.inf
-
-
-@dataclass(frozen=True, slots=True)
-class TimingPreference:
-    """A behaviour's sync points in canonical order and its phase preferences."""
-
-    syncs: tuple[str, ...]
-    phases: tuple[PhasePreference, ...]
-
-
 @lru_cache(maxsize=1)
 def load_engine_data() -> dict[str, Any]:
     path = DATA_DIR / "engine.toml"
@@ -151,8 +133,8 @@ def load_engine_data() -> dict[str, Any]:
         return tomllib.load(handle)
 
 
-def _phase(entry: Mapping[str, float]) -> PhasePreference:
-    return PhasePreference(
+def _phase(entry: Mapping[str, float]) -> Phase:
+    return Phase(
         float(entry["preferred"]), float(entry.get("weight", 1.0)), float(entry.get("minimum", 0.0))
     )
 
@@ -249,7 +231,7 @@ class FaceEngine:
     def handles(self, behaviour: Behaviour) -> bool:
         return behaviour.type in HANDLED_TYPES
 
-    def timing(self, behaviour: Behaviour) -> TimingPreference:
+    def timing(self, behaviour: Behaviour) -> TimingModel:
         """Sync points and phase preferences (seconds) of a handled behaviour."""
         data = load_engine_data()["timing"]
         syncs = tuple(behaviour.syncs)
@@ -273,7 +255,7 @@ class FaceEngine:
             raise ConversionError(
                 f"{kind} {behaviour.id!r}: {len(syncs)} sync points but {len(table)} timing phases"
             )
-        return TimingPreference(syncs, tuple(table))
+        return TimingModel(syncs, tuple(table))
 
     def plan(self, behaviour: Behaviour) -> TimingModel:
         """The scheduler's TimingModel for the behaviour (docs/interfaces.md).
@@ -285,15 +267,9 @@ class FaceEngine:
         """
         try:
             self.validate(behaviour)
-            preference = self.timing(behaviour)
+            return self.timing(behaviour)
         except ConversionError as error:
             raise TimingModelError(str(error)) from None
-        return TimingModel(
-            syncs=preference.syncs,
-            phases=tuple(
-                Phase(p.preferred, p.weight, p.minimum, p.maximum) for p in preference.phases
-            ),
-        )
 
     # --- what ------------------------------------------------------------------
 
