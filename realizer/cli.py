@@ -28,6 +28,8 @@ COMMANDS: tuple[str, ...] = (
     "serve",
     "send",
     "render",
+    "schedule",
+    "plot",
 )
 
 
