@@ -38,7 +38,6 @@ _EXPORTS = {
     "load_face": "paramfile",
     "save_face": "paramfile",
     "build_test_head": "testhead",
-    "load_default_face": "default",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -187,9 +187,9 @@ def _read_deformer(element: Any) -> DeformerSetting:
         return TransformDeformer(
             fap,
             tuple(r.text("parts").split()),
-            kind,
+            "rotation" if kind == "rotation" else "translation",
             r.vec(),
-            r.number("scale", 1.0),  # type: ignore[arg-type]
+            r.number("scale", 1.0),
             pivot,
             pivot_fp,
             r.number("falloff", 0.0),
