@@ -21,6 +21,8 @@ COMMANDS: tuple[str, ...] = (
     "bench",
     "facs",
     "emotion",
+    "faps",
+    "plot_faps",
     "fap_sheet",
     "face",
     "serve",
