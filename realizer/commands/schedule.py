@@ -84,22 +84,6 @@ def warnings_of(feedback: list[Feedback]) -> tuple[WarningNote, ...]:
     return tuple(notes)
 
 
-def timing_registry() -> Any:
-    """The standard engines, asked only for timing: nothing is realized.
-
-    The schedule needs no animations, and building them could fail on what
-    only the face engine checks (an unknown head lexeme plans with default
-    timing but cannot be animated).
-    """
-    from realizer.scheduler.engines import EngineRegistry
-
-    class TimingOnly(EngineRegistry):
-        def realize(self, behaviour: Any, times: Any) -> None:
-            return None
-
-    return TimingOnly.standard()
-
-
 def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
     """Schedule the files in order in one session at time 0.
 
@@ -109,7 +93,7 @@ def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
     from realizer.bml_parser import BmlError, parse_bml
     from realizer.session import Session
 
-    session = Session(registry=timing_registry())
+    session = Session()
     outcomes: list[ScheduledFile] = []
     errors: list[str] = []
     for path in paths:

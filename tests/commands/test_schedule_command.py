@@ -192,3 +192,22 @@ def test_a_replace_block_interrupts_earlier_files_and_append_follows_it(
     # APPEND waits only for blocks still pending or running: not the smile.
     assert append["start"] == pytest.approx(replace["end"])
     assert append["start"] < smile["end"]
+
+
+def test_every_parsable_corpus_document_schedules(
+    conformance_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    unparsable = {"testinvalidxml.xml", "testinvalidxml2.xml", "testnod_unknownattributes.xml"}
+    for path in sorted(conformance_dir.glob("*.xml")):
+        status = main(["schedule", "--json", str(path)])
+        captured = capsys.readouterr()
+        if path.name in unparsable:
+            assert status == 2, path.name
+            assert captured.err.startswith(f"{path}:"), path.name
+            continue
+        assert status == 0, (path.name, captured.err)
+        (block,) = json.loads(captured.out)["blocks"]
+        for behaviour in block["behaviours"]:
+            times = list(behaviour["syncs"].values())
+            # Sync points in canonical order never run backwards.
+            assert times == sorted(times), (path.name, behaviour["id"])
