@@ -5,7 +5,8 @@ The block is scheduled as ``realizer schedule`` does (a fresh session at time
 start to its end; a tick and a small label at every sync point. Sync points
 the block ties together (sync references and ``<synchronize>``, the equality
 groups of :func:`realizer.bml_parser.constraint_groups`) are joined by dashed
-connectors; ``<before>``/``<after>`` orderings by dotted arrows in another
+connectors (labelled with the offset where the points differ in time);
+``<before>``/``<after>`` orderings by dotted arrows in another
 colour, from the earlier to the later point. Exit status as for ``realizer
 schedule``: 2 for a file that cannot be read or parsed, 1 when the block
 cannot be scheduled, else 0.
@@ -177,6 +178,17 @@ def draw_timeline(plan: TimedPlan, output: Path, *, subtitle: str = "") -> tuple
             axes.plot([ta, tb], [ya, yb], linestyle=(0, (4, 2)), color=SYNC_COLOUR,
                       linewidth=1.1, alpha=0.8, zorder=1)  # fmt: skip
             ties += 1
+            if abs(tb - ta) > 1e-6:  # a tie with an offset (``a:start+4``): say how much
+                axes.annotate(
+                    f"{tb - ta:+.3g} s",
+                    ((ta + tb) / 2, (ya + yb) / 2),
+                    ha="center",
+                    va="center",
+                    fontsize=LABEL_POINTS,
+                    color=SYNC_COLOUR,
+                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none"},
+                    zorder=5,
+                )
     orders = 0
     for ordering in orderings:
         earlier, later = where(ordering.earlier), where(ordering.later)

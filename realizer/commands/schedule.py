@@ -4,7 +4,8 @@ Every file holds one block. The files go, in the order given, to one fresh
 :class:`realizer.session.Session` at time 0, so composition and cross-block
 references work across files as they do in a live session: an APPEND block
 starts after every earlier block has ended, a REPLACE block interrupts the
-earlier ones (they are still listed, with the times they were planned for),
+earlier ones (they are still listed, with the times they were planned for,
+and marked interrupted in the table),
 and ``bml1:nod1:end`` in a later file names a sync point of an earlier one.
 All times are global seconds, which here are seconds after the first block
 started. Warnings go to stderr as ``path: warning TYPE id: message``.
@@ -51,6 +52,8 @@ class ScheduledFile:
     path: Path
     plan: TimedPlan | None
     warnings: tuple[WarningNote, ...]
+    #: a later REPLACE block interrupted this one (its times are as planned)
+    interrupted: bool = False
 
 
 def register(subparsers: Any) -> None:
@@ -81,22 +84,6 @@ def warnings_of(feedback: list[Feedback]) -> tuple[WarningNote, ...]:
     return tuple(notes)
 
 
-def timing_registry() -> Any:
-    """The standard engines, asked only for timing: nothing is realized.
-
-    The schedule needs no animations, and building them could fail on what
-    only the face engine checks (an unknown head lexeme plans with default
-    timing but cannot be animated).
-    """
-    from realizer.scheduler.engines import EngineRegistry
-
-    class TimingOnly(EngineRegistry):
-        def realize(self, behaviour: Any, times: Any) -> None:
-            return None
-
-    return TimingOnly.standard()
-
-
 def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
     """Schedule the files in order in one session at time 0.
 
@@ -106,7 +93,7 @@ def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
     from realizer.bml_parser import BmlError, parse_bml
     from realizer.session import Session
 
-    session = Session(registry=timing_registry())
+    session = Session()
     outcomes: list[ScheduledFile] = []
     errors: list[str] = []
     for path in paths:
@@ -124,6 +111,19 @@ def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
             continue
         plan = session.receive_bml(data, now=0.0)
         outcomes.append(ScheduledFile(path, plan, warnings_of(session.take_feedback())))
+    from realizer.session import BlockState
+
+    outcomes = [
+        ScheduledFile(
+            o.path,
+            o.plan,
+            o.warnings,
+            interrupted=o.plan is not None
+            and session.plan(o.plan.id) is o.plan
+            and session.state(o.plan.id) is BlockState.INTERRUPTED,
+        )
+        for o in outcomes
+    ]
     return outcomes, errors
 
 
@@ -218,7 +218,8 @@ def run(args: argparse.Namespace) -> int:
             if plan is None:
                 print(f"{outcome.path}: not scheduled")
                 continue
-            print(f"{outcome.path}: block {plan.id}  {plan.start:.3f} s to {plan.end:.3f} s")
+            flag = "  (interrupted by a later REPLACE block)" if outcome.interrupted else ""
+            print(f"{outcome.path}: block {plan.id}  {plan.start:.3f} s to {plan.end:.3f} s{flag}")
             for text in format_table(plan):
                 print(text)
     if errors:

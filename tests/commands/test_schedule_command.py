@@ -165,3 +165,49 @@ def test_help_says_how_times_are_counted(capsys: pytest.CaptureFixture[str]) -> 
     text = " ".join(capsys.readouterr().out.split())
     assert "global seconds" in text
     assert "APPEND" in text
+
+
+def test_a_block_id_already_running_is_refused_and_exits_1(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    status, document, err = schedule_json(capsys, SMILE, SMILE)
+    assert "PARSING_FAILURE smile" in err
+    assert status == 1
+    assert [b["id"] for b in document["blocks"]] == ["smile"]
+    (note,) = document["warnings"]
+    assert note["type"] == "PARSING_FAILURE"
+    assert "already running" in note["message"]
+
+
+def test_a_replace_block_interrupts_earlier_files_and_append_follows_it(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    paths = [SMILE, EXAMPLES / "11_replace.xml", APPEND]
+    assert main(["schedule", *map(str, paths)]) == 0
+    out = capsys.readouterr().out
+    assert f"{SMILE}: block smile  0.000 s to 2.500 s  (interrupted" in out
+    status, document, _ = schedule_json(capsys, *paths)
+    assert status == 0
+    smile, replace, append = document["blocks"]
+    # APPEND waits only for blocks still pending or running: not the smile.
+    assert append["start"] == pytest.approx(replace["end"])
+    assert append["start"] < smile["end"]
+
+
+def test_every_parsable_corpus_document_schedules(
+    conformance_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    unparsable = {"testinvalidxml.xml", "testinvalidxml2.xml", "testnod_unknownattributes.xml"}
+    for path in sorted(conformance_dir.glob("*.xml")):
+        status = main(["schedule", "--json", str(path)])
+        captured = capsys.readouterr()
+        if path.name in unparsable:
+            assert status == 2, path.name
+            assert captured.err.startswith(f"{path}:"), path.name
+            continue
+        assert status == 0, (path.name, captured.err)
+        (block,) = json.loads(captured.out)["blocks"]
+        for behaviour in block["behaviours"]:
+            times = list(behaviour["syncs"].values())
+            # Sync points in canonical order never run backwards.
+            assert times == sorted(times), (path.name, behaviour["id"])
