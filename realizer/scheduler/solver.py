@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy.sparse.csgraph import NegativeCycleError, shortest_path
+from scipy.sparse.csgraph import NegativeCycleError, connected_components, shortest_path
 
 from realizer.errors import RealizerError
 from realizer.scheduler.timing import Phase
@@ -62,6 +62,8 @@ BLOCK_START: Key = ("bml", "start")
 PULL = 1e-3
 #: Constraint tolerance, seconds.
 TOLERANCE = 1e-9
+#: Steps the primal-dual active-set method may take before the fallback.
+PDAS_STEPS = 50
 
 
 @dataclass(frozen=True, slots=True)
@@ -279,52 +281,51 @@ def solve(problem: Problem) -> dict[Key, float]:
             conflict = find_conflict(problem)
             raise Infeasible(conflict or frozenset({r.source}), "contradictory equalities")
 
+    keys = list(problem.keys)
+    key_index = {key: index for index, key in enumerate(keys)}
     roots: dict[Key, int] = {}
-    key_class = np.empty(len(problem.keys), dtype=np.int64)
-    key_offset = np.empty(len(problem.keys))
-    key_index = {}
-    for index, key in enumerate(problem.keys):
+    key_class = np.empty(len(keys), dtype=np.int64)
+    key_offset = np.empty(len(keys))
+    for index, key in enumerate(keys):
         root, offset = classes.find(key)
-        key_index[key] = index
         key_class[index] = roots.setdefault(root, len(roots))
         key_offset[index] = offset
     n_classes = len(roots)
     block = key_index[BLOCK_START]
-    pinned_class = key_class[block]
+    pinned_class = int(key_class[block])
     # The pinned class's value makes t_block = 0.
-    pinned_value = -key_offset[block]
+    pinned_value = -float(key_offset[block])
 
-    # Cost components (classes linked by phases): those without the pinned
+    phase_a = np.fromiter((key_index[a] for a, _, _, _ in problem.phases), np.int64,
+                          len(problem.phases))  # fmt: skip
+    phase_b = np.fromiter((key_index[b] for _, b, _, _ in problem.phases), np.int64,
+                          len(problem.phases))  # fmt: skip
+    phase_w = np.array([p.weight for _, _, p, _ in problem.phases], dtype=float)
+    phase_p = np.array([p.preferred for _, _, p, _ in problem.phases], dtype=float)
+    phase_min = np.array([p.minimum for _, _, p, _ in problem.phases], dtype=float)
+    phase_max = np.array([p.maximum for _, _, p, _ in problem.phases], dtype=float)
+
+    # Cost components: classes linked by phases. Those without the pinned
     # class may shift freely and get the start-early pull.
-    comp = list(range(n_classes))
-
-    def comp_find(x: int) -> int:
-        while comp[x] != x:
-            comp[x] = comp[comp[x]]
-            x = comp[x]
-        return x
-
-    phase_a = np.array([key_index[a] for a, _, _, _ in problem.phases], dtype=np.int64)
-    phase_b = np.array([key_index[b] for _, b, _, _ in problem.phases], dtype=np.int64)
-    phase_w = np.array([p.weight for _, _, p, _ in problem.phases])
-    phase_p = np.array([p.preferred for _, _, p, _ in problem.phases])
-    for a, b in zip(key_class[phase_a].tolist(), key_class[phase_b].tolist(), strict=True):
-        ra, rb = comp_find(a), comp_find(b)
-        if ra != rb:
-            comp[rb] = ra
-    pinned_comp = comp_find(int(pinned_class))
+    linked = sp.csr_matrix(
+        (np.ones(phase_a.size), (key_class[phase_a], key_class[phase_b])),
+        shape=(n_classes, n_classes),
+    )
+    _, comp = connected_components(linked, directed=False)
+    pinned_comp = int(comp[pinned_class])
 
     # Variables: every class but the pinned one.
     var_of_class = np.full(n_classes, -1, dtype=np.int64)
-    free = [c for c in range(n_classes) if c != pinned_class]
-    var_of_class[free] = np.arange(len(free))
-    n = len(free)
+    free = np.flatnonzero(np.arange(n_classes) != pinned_class)
+    var_of_class[free] = np.arange(free.size)
+    n = int(free.size)
 
     def as_var(key_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Variable index (or -1) and constant part of t for key indices."""
-        cls = key_class[key_rows]
-        var = var_of_class[cls]
-        const = key_offset[key_rows] + np.where(var < 0, pinned_value, 0.0)
+        """Variable index (or -1) and constant part of t for key indices (-1: zero)."""
+        present = key_rows >= 0
+        safe = np.where(present, key_rows, 0)
+        var = np.where(present, var_of_class[key_class[safe]], -1)
+        const = np.where(present, key_offset[safe] + np.where(var < 0, pinned_value, 0.0), 0.0)
         return var, const
 
     # Objective: sum w (x_b - x_a + c)^2 over phase terms and pull terms.
@@ -333,82 +334,65 @@ def solve(problem: Problem) -> dict[Key, float]:
     term_i, term_j = vb, va  # + x_i - x_j
     term_c = cb - ca - phase_p
     term_w = phase_w
-    start_rows = np.array([key_index[k] for k in problem.starts], dtype=np.int64)
-    if start_rows.size:
-        start_var, start_const = as_var(start_rows)
-        # One pulled start per free component makes the system definite; the
-        # polish step removes the pull once a bound pins the shift.
-        seen: set[int] = set()
-        free_start = np.zeros(start_rows.size, dtype=bool)
-        for position, cls in enumerate(key_class[start_rows].tolist()):
-            group = comp_find(int(cls))
-            if group != pinned_comp and group not in seen:
-                seen.add(group)
-                free_start[position] = True
-        pull = PULL * (float(phase_w.mean()) if phase_w.size else 1.0)
-        term_i = np.concatenate([term_i, start_var[free_start]])
-        term_j = np.concatenate([term_j, np.full(int(free_start.sum()), -1)])
-        term_c = np.concatenate([term_c, start_const[free_start]])
-        term_w = np.concatenate([term_w, np.full(int(free_start.sum()), pull)])
+    start_rows = np.fromiter((key_index[k] for k in problem.starts), np.int64,
+                             len(problem.starts))  # fmt: skip
+    start_var, start_const = as_var(start_rows)
+    # One pulled start per free component makes the system definite; the
+    # polish step removes the pull once a bound pins the shift.
+    start_comp = comp[key_class[start_rows]]
+    _, first = np.unique(start_comp, return_index=True)
+    free_start = np.zeros(start_rows.size, dtype=bool)
+    free_start[first[start_comp[first] != pinned_comp]] = True
+    pull = PULL * (float(phase_w.mean()) if phase_w.size else 1.0)
+    n_pulled = int(free_start.sum())
+    term_i = np.concatenate([term_i, start_var[free_start]])
+    term_j = np.concatenate([term_j, np.full(n_pulled, -1, dtype=np.int64)])
+    term_c = np.concatenate([term_c, start_const[free_start]])
+    term_w = np.concatenate([term_w, np.full(n_pulled, pull)])
     hessian, gradient = _quadratic(n, term_i, term_j, term_c, term_w)
     n_phase = phase_w.size
     exact = _quadratic(n, term_i[:n_phase], term_j[:n_phase], term_c[:n_phase], phase_w)
 
-    # Inequalities as rows: coef_i * x_i - coef_j * x_j >= bound.
-    rows_i: list[int] = []
-    rows_j: list[int] = []
-    bounds: list[float] = []
-    sources: list[Source] = []
-
-    def add_row(upper: int, lower: int, minimum: float, source: Source) -> None:
-        """t_upper - t_lower >= minimum, keys given by index (-1: zero)."""
-        vi, ci = (var_of_class[key_class[upper]], key_offset[upper]) if upper >= 0 else (-1, 0.0)
-        vj, cj = (var_of_class[key_class[lower]], key_offset[lower]) if lower >= 0 else (-1, 0.0)
-        if upper >= 0 and vi < 0:
-            ci += pinned_value
-        if lower >= 0 and vj < 0:
-            cj += pinned_value
-        bound = minimum - ci + cj
-        if vi == vj:  # nothing variable: a plain check
-            if bound - TOLERANCE > 0:
-                raise _RowInfeasible(source)
-            return
-        rows_i.append(int(vi))
-        rows_j.append(int(vj))
-        bounds.append(bound)
-        sources.append(source)
-
-    try:
-        for r in problem.orderings:  # t_b + kb - t_a - ka >= 0
-            add_row(key_index[r.b], key_index[r.a], r.ka - r.kb, r.source)
-        for (_, _, phase, source), ia, ib in zip(
-            problem.phases, phase_a.tolist(), phase_b.tolist(), strict=True
-        ):
-            add_row(ib, ia, phase.minimum, source)
-            if math.isfinite(phase.maximum) and phase.maximum - phase.minimum > TOLERANCE:
-                add_row(ia, ib, -phase.maximum, source)
-        # t >= 0: per class, only the tightest (the earliest key) matters.
-        lowest: dict[int, int] = {}
-        for index in range(len(key_class)):
-            cls = int(key_class[index])
-            if cls == pinned_class:
-                if key_offset[index] + pinned_value < -TOLERANCE:
-                    raise _RowInfeasible(BLOCK_SOURCE)
-                continue
-            best = lowest.get(cls)
-            if best is None or key_offset[index] < key_offset[best]:
-                lowest[cls] = index
-        for index in lowest.values():
-            add_row(index, -1, 0.0, BLOCK_SOURCE)
-    except _RowInfeasible as exc:
+    # Inequalities as rows ``t_upper - t_lower >= minimum`` (key indices, -1: zero).
+    stretchy = np.isfinite(phase_max) & (phase_max - phase_min > TOLERANCE)
+    order_upper = np.fromiter((key_index[r.b] for r in problem.orderings), np.int64,
+                              len(problem.orderings))  # fmt: skip
+    order_lower = np.fromiter((key_index[r.a] for r in problem.orderings), np.int64,
+                              len(problem.orderings))  # fmt: skip
+    order_min = np.array([r.ka - r.kb for r in problem.orderings], dtype=float)
+    # t >= 0: per class, only the tightest (the earliest key) matters; the
+    # pinned class is a plain check.
+    by_class = np.lexsort((key_offset, key_class))
+    earliest_key = by_class[np.r_[True, key_class[by_class][1:] != key_class[by_class][:-1]]]
+    pinned_keys = key_class == pinned_class
+    if np.any(key_offset[pinned_keys] + pinned_value < -TOLERANCE):
+        conflict = find_conflict(problem)
+        raise Infeasible(conflict or frozenset({BLOCK_SOURCE}), "a fixed time breaks a bound")
+    earliest_key = earliest_key[key_class[earliest_key] != pinned_class]
+    upper = np.concatenate([order_upper, phase_b, phase_a[stretchy], earliest_key])
+    lower = np.concatenate(
+        [order_lower, phase_a, phase_b[stretchy], np.full(earliest_key.size, -1, np.int64)]
+    )
+    minimum = np.concatenate([order_min, phase_min, -phase_max[stretchy],
+                              np.zeros(earliest_key.size)])  # fmt: skip
+    phase_sources = [source for _, _, _, source in problem.phases]
+    sources = (
+        [r.source for r in problem.orderings]
+        + phase_sources
+        + [source for source, keep in zip(phase_sources, stretchy.tolist(), strict=True) if keep]
+        + [BLOCK_SOURCE] * int(earliest_key.size)
+    )
+    ri, ci = as_var(upper)
+    rj, cj = as_var(lower)
+    b = minimum - ci + cj
+    constant = ri == rj  # nothing variable: a plain check
+    broken = np.flatnonzero(constant & (b > TOLERANCE))
+    if broken.size:
         conflict = find_conflict(problem)
         raise Infeasible(
-            conflict or frozenset({exc.source}), "a fixed time breaks a bound"
-        ) from None
-
-    ri = np.asarray(rows_i, dtype=np.int64)
-    rj = np.asarray(rows_j, dtype=np.int64)
-    b = np.asarray(bounds, dtype=float)
+            conflict or frozenset({sources[int(broken[0])]}), "a fixed time breaks a bound"
+        )
+    ri, rj, b = ri[~constant], rj[~constant], b[~constant]
     matrix = _rows_matrix(n, ri, rj)
 
     # Fast path: the optimum without inequalities, each free group moved to
@@ -416,35 +400,115 @@ def solve(problem: Problem) -> dict[Key, float]:
     x, _ = _kkt(hessian, gradient, matrix, [], b)
     if x is None:
         raise SchedulingError("the scheduler's cost matrix is singular")
-    var_comp = np.array([comp_find(c) for c in free], dtype=np.int64)
+    var_comp = comp[free]
     if n:
-        t = x[var_of_class[key_class]] + key_offset
-        t = np.where(var_of_class[key_class] >= 0, t, key_offset + pinned_value)
-        key_comp = np.array([comp_find(int(c)) for c in key_class], dtype=np.int64)
+        key_var = var_of_class[key_class]
+        t = np.where(key_var >= 0, x[key_var] + key_offset, key_offset + pinned_value)
         earliest = np.full(n_classes, np.inf)
-        np.minimum.at(earliest, key_comp, t)
+        np.minimum.at(earliest, comp[key_class], t)
         shift = np.where(var_comp != pinned_comp, -earliest[var_comp], 0.0)
         x = x + shift
     if b.size and (matrix @ x - b).min() < -TOLERANCE:
-        start = _feasible_point(n, ri, rj, b)
-        if start is None:
-            conflict = find_conflict(problem)
-            raise Infeasible(conflict or frozenset(), "the constraints cannot all hold")
-        pulled = start_var[free_start] if start_rows.size else np.zeros(0, dtype=np.int64)
-        solved = _active_set(hessian, gradient, matrix, b, start, exact, pulled, var_comp)
-        if solved is None:
-            raise SchedulingError("the scheduler's active-set method did not converge")
-        x = solved
+        pulled = start_var[free_start]
+        solved = _primal_dual_active_set(hessian, gradient, matrix, ri, rj, b, x)
+        if solved is not None:
+            x = _polish(
+                exact, matrix, ri, rj, b, solved[1], solved[0], pulled, var_comp, pinned_comp
+            )
+        else:
+            # The fast method cycled or met a degenerate working set: the
+            # primal active-set method from a feasible point always ends.
+            start = _feasible_point(n, ri, rj, b)
+            if start is None:
+                conflict = find_conflict(problem)
+                raise Infeasible(conflict or frozenset(), "the constraints cannot all hold")
+            solved_x = _active_set(hessian, gradient, matrix, ri, rj, b, start, exact, pulled,
+                                   var_comp, pinned_comp)  # fmt: skip
+            if solved_x is None:
+                raise SchedulingError("the scheduler's active-set method did not converge")
+            x = solved_x
 
     values = np.where(var_of_class >= 0, 0.0, pinned_value)
     values[free] = x
     times = values[key_class] + key_offset
-    return {key: float(times[index]) for key, index in key_index.items()}
+    return dict(zip(keys, times.tolist(), strict=True))
 
 
-class _RowInfeasible(Exception):
-    def __init__(self, source: Source) -> None:
-        self.source = source
+def _independent(ri: np.ndarray, rj: np.ndarray, rows: Iterable[int], n: int) -> list[int]:
+    """The rows of ``rows`` that form a spanning forest (so are linearly independent).
+
+    Every row is ``x_i - x_j`` (index -1: the zero node ``n``); rows are
+    dependent exactly when their edges close a cycle, and a row that closes a
+    cycle of rows held as equalities is implied by them (or contradicts them,
+    which the caller sees as a violated row).
+    """
+    parent = list(range(n + 1))
+
+    def find(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    kept = []
+    for row in rows:
+        i, j = int(ri[row]), int(rj[row])
+        a, c = find(i if i >= 0 else n), find(j if j >= 0 else n)
+        if a != c:
+            parent[a] = c
+            kept.append(int(row))
+    return kept
+
+
+def _primal_dual_active_set(
+    hessian: sp.csc_matrix,
+    gradient: np.ndarray,
+    matrix: sp.csr_matrix,
+    ri: np.ndarray,
+    rj: np.ndarray,
+    b: np.ndarray,
+    x: np.ndarray,
+) -> tuple[np.ndarray, list[int]] | None:
+    """The primal-dual active-set method (Hintermüller, Ito and Kunisch 2002).
+
+    Each step holds every row predicted active (violated, or with a positive
+    multiplier) as an equality and solves one sparse KKT system, so a block
+    whose optimum leans on hundreds of bounds needs a handful of solves
+    rather than one per bound. The Hessian is a graph Laplacian plus a
+    diagonal (an M-matrix), the case where the method converges fast; it
+    can still cycle on general rows, so it gives up (None) on a repeated
+    working set or after :data:`PDAS_STEPS` steps, and the caller falls
+    back to the primal active-set method. Returns x and the working rows.
+    """
+    n = x.size
+    active = (matrix @ x - b) < -TOLERANCE
+    seen: set[bytes] = set()
+    multipliers = np.zeros(b.size)
+    for _ in range(PDAS_STEPS):
+        working = _independent(ri, rj, np.flatnonzero(active).tolist(), n)
+        solution, lam = _kkt(hessian, gradient, matrix, working, b, quiet=True)
+        if solution is None:
+            return None
+        multipliers[:] = 0.0
+        if working:
+            assert lam is not None
+            multipliers[working] = lam
+        slack = matrix @ solution - b
+        scale = 1e-9 * (1.0 + float(np.abs(multipliers).max(initial=0.0)))
+        # A held row stays unless its multiplier is clearly negative: rows
+        # that are active with a zero multiplier (degenerate) would otherwise
+        # leave, be violated by round-off and come back, for ever.
+        predicted = (active & (multipliers >= -scale)) | (slack < -TOLERANCE)
+        if np.array_equal(predicted, active):
+            if slack.min(initial=0.0) >= -TOLERANCE and multipliers.min(initial=0.0) >= -scale:
+                return solution, working
+            return None
+        signature = np.packbits(predicted).tobytes()
+        if signature in seen:
+            return None
+        seen.add(signature)
+        active = predicted
+    return None
 
 
 def _quadratic(
@@ -521,11 +585,14 @@ def _active_set(
     hessian: sp.csc_matrix,
     gradient: np.ndarray,
     matrix: sp.csr_matrix,
+    ri: np.ndarray,
+    rj: np.ndarray,
     b: np.ndarray,
     x: np.ndarray,
     exact: tuple[sp.csc_matrix, np.ndarray],
     pulled: np.ndarray,
     var_comp: np.ndarray,
+    pinned_comp: int,
 ) -> np.ndarray | None:
     """Primal active-set method from the feasible point ``x`` (Nocedal & Wright 16.3).
 
@@ -545,7 +612,7 @@ def _active_set(
         size = float(np.abs(step).max(initial=0.0))
         if size <= 1e-10 * (1 + np.abs(x).max(initial=0.0)):
             if not working or multipliers is None or multipliers.min() >= -1e-12:
-                return _polish(exact, matrix, b, working, x, pulled, var_comp)
+                return _polish(exact, matrix, ri, rj, b, working, x, pulled, var_comp, pinned_comp)
             drop = working.pop(int(np.argmin(multipliers)))
             in_working[drop] = False
             continue
@@ -570,22 +637,50 @@ def _active_set(
 def _polish(
     exact: tuple[sp.csc_matrix, np.ndarray],
     matrix: sp.csr_matrix,
+    ri: np.ndarray,
+    rj: np.ndarray,
     b: np.ndarray,
     working: list[int],
     x: np.ndarray,
     pulled: np.ndarray,
     var_comp: np.ndarray,
+    pinned_comp: int,
 ) -> np.ndarray:
     """Solve the final working set again without the pull.
 
-    Groups that no active row holds keep the shift the pull gave them (their
-    pulled start is then at 0 and the pull exerts no force); in the others
-    the active rows pin the shift, and the pull's small force on them is
-    removed, which makes the result the exact optimum of the phase costs.
+    The working rows link cost components to each other and to the zero
+    node (the block start and fixed times). A group of components that no
+    chain of working rows ties to the zero node keeps the shift the pull
+    gave it: one pulled start of the group is held where it is (holding
+    more would repeat the same tie). In every other group the rows pin the
+    shift, and the pull's small force is removed, which makes the result
+    the exact optimum of the phase costs.
     """
-    touched = set(var_comp[matrix[working].indices].tolist()) if working else set()
-    hold = [int(v) for v in pulled if int(var_comp[v]) not in touched]
     n = x.size
+    # The pinned component (the block start's) is the zero node's group: its
+    # phases tie it to the block start already.
+    zero = pinned_comp
+    parent = list(range(max(int(var_comp.max(initial=-1)), pinned_comp) + 1))
+
+    def find(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for row in working:
+        i, j = int(ri[row]), int(rj[row])
+        a = find(int(var_comp[i]) if i >= 0 else zero)
+        c = find(int(var_comp[j]) if j >= 0 else zero)
+        if a != c:
+            parent[a] = c
+    hold: list[int] = []
+    held: set[int] = {find(zero)}
+    for v in pulled.tolist():
+        group = find(int(var_comp[v]))
+        if group not in held:
+            held.add(group)
+            hold.append(int(v))
     extra = sp.csr_matrix(
         (np.ones(len(hold)), (np.arange(len(hold)), np.asarray(hold, dtype=np.int64))),
         shape=(len(hold), n),
