@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from realizer.scheduler import solver
 from realizer.scheduler.solver import BLOCK_START, Infeasible, Problem, Source, solve
 from realizer.scheduler.timing import Phase, TimingModel, TimingModelError
 
@@ -321,3 +322,146 @@ def test_all_pairs_of_small_shift_problems_are_left_aligned() -> None:
         times = solve(problem)
         assert min(times.values()) == pytest.approx(0.0, abs=1e-9)
         assert times[("A", "end")] == pytest.approx(max(a, b), abs=1e-9)
+
+
+# -- the primal-dual active set, its fallback, and equality elimination ---------
+
+
+def crowded_problem(seed: int, count: int = 30) -> Problem:
+    """Chains and rings of behaviours with many orderings, most of them binding."""
+    rng = np.random.default_rng(1000 + seed)
+    problem = Problem()
+    syncs = ("start", "ready", "stroke", "relax", "end")
+    names = [f"b{i}" for i in range(count)]
+    for name in names:
+        phases = [Phase(float(rng.uniform(0.2, 1.0)), float(rng.uniform(0.5, 3.0)))
+                  for _ in range(4)]  # fmt: skip
+        problem.add_behaviour(name, syncs, phases, src(name))
+    for i in range(1, count):  # a chain: each starts at the previous stroke
+        problem.equal((names[i], "start"), 0.0, (names[i - 1], "stroke"), 0.0, src(names[i]))
+    for i in range(0, count - 2, 3):  # rings: an end tied to a later ready
+        problem.equal((names[i], "end"), 0.0, (names[i + 2], "ready"), 0.0, src(names[i]))
+    for i in range(int(rng.integers(count // 3, count))):  # orderings, many binding
+        a, b = rng.choice(count, 2, replace=False)
+        problem.order((names[a], "end"), float(rng.uniform(0, 0.5)), (names[b], "relax"), 0.0,
+                      src(f"c{i}", "constraint"))  # fmt: skip
+    return problem
+
+
+def check_against_reference(problem: Problem, ours: dict[tuple[str, str], float]) -> None:
+    theirs, exact = reference(problem)
+    if exact:
+        assert cost(ours, problem) == pytest.approx(cost(theirs, problem), abs=1e-6)
+    else:
+        assert cost(ours, problem) <= cost(theirs, problem) + 1e-6
+    for r in problem.orderings:
+        assert ours[r.a] + r.ka <= ours[r.b] + r.kb + 1e-7
+    for r in problem.equalities:
+        assert ours[r.a] + r.ka == pytest.approx(ours[r.b] + r.kb, abs=1e-7)
+    for a, b, phase, _ in problem.phases:
+        assert ours[b] - ours[a] >= phase.minimum - 1e-7
+    assert min(ours.values()) >= -1e-9
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_crowded_problems_match_a_reference_qp(seed: int) -> None:
+    problem = crowded_problem(seed)
+    try:
+        ours = solve(problem)
+    except Infeasible:
+        with pytest.raises(ValueError):
+            reference(problem)
+        return
+    check_against_reference(problem, ours)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_fallback_active_set_gives_the_same_optimum(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    problem = crowded_problem(seed)
+    try:
+        fast = solve(problem)
+    except Infeasible:
+        return
+    monkeypatch.setattr(solver, "PDAS_STEPS", 0)  # the primal-dual method gives up at once
+    slow = solve(problem)
+    assert cost(slow, problem) == pytest.approx(cost(fast, problem), abs=1e-7)
+    check_against_reference(problem, slow)
+
+
+def test_crowded_problems_bind_many_orderings_at_once() -> None:
+    # The point of the primal-dual method: several rows enter per solve.
+    binding = []
+    for seed in range(12):
+        problem = crowded_problem(seed)
+        try:
+            times = solve(problem)
+        except Infeasible:
+            continue
+        binding.append(
+            sum(abs(times[r.a] + r.ka - times[r.b] - r.kb) < 1e-7 for r in problem.orderings)
+        )
+    assert max(binding) >= 5
+
+
+def chained_rings(count: int) -> Problem:
+    """Seven-point behaviours in a chain with rings; many phases want to go negative."""
+    rng = np.random.default_rng(count)
+    problem = Problem()
+    syncs = ("start", "ready", "stroke", "relax", "end")
+    for i in range(count):
+        phases = [Phase(float(rng.uniform(0.2, 1.0)), float(rng.uniform(0.5, 2.0)))
+                  for _ in range(4)]  # fmt: skip
+        problem.add_behaviour(f"b{i}", syncs, phases, src(f"b{i}"))
+    for i in range(1, count):
+        problem.equal((f"b{i}", "start"), 0.0, (f"b{i - 1}", "stroke"), 0.0, src(f"b{i}"))
+    for i in range(0, count - 3, 3):
+        problem.equal((f"b{i}", "end"), 0.0, (f"b{i + 2}", "ready"), 0.0, src(f"b{i}"))
+    return problem
+
+
+@pytest.mark.parametrize("count", [50, 300, 1000])
+def test_degenerate_bounds_do_not_make_the_primal_dual_method_cycle(
+    count: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Rows that are active with a zero multiplier used to leave the working
+    # set, come back violated by 1e-8 and leave again (seen at 1,000).
+    def no_fallback(*args: object) -> None:
+        raise AssertionError("the primal-dual method should have finished")
+
+    problem = chained_rings(count)
+    monkeypatch.setattr(solver, "_active_set", no_fallback)
+    times = solve(problem)
+    for a, b, phase, _ in problem.phases:
+        assert times[b] - times[a] >= phase.minimum - 1e-7
+    # some phase is squeezed to its bound: the active-set path ran
+    assert any(abs(times[b] - times[a]) < 1e-9 for a, b, _, _ in problem.phases)
+    if count <= 50:
+        check_against_reference(problem, times)
+
+
+def test_long_chains_of_ties_get_their_offsets() -> None:
+    # 200 behaviours tied end to start with offsets, in scrambled order.
+    problem = Problem()
+    count = 200
+    for i in range(count):
+        two(problem, f"b{i}", 1.0)
+    order = np.random.default_rng(7).permutation(count - 1)
+    for i in order.tolist():
+        problem.equal((f"b{i + 1}", "start"), 0.0, (f"b{i}", "end"), 0.25, src(f"b{i + 1}"))
+    times = solve(problem)
+    for i in range(count):
+        assert times[(f"b{i}", "start")] == pytest.approx(1.25 * i, abs=1e-9)
+
+
+def test_a_ring_of_ties_that_does_not_close_is_a_conflict() -> None:
+    problem = Problem()
+    for name in "abc":
+        two(problem, name, 1.0)
+    problem.equal(("b", "start"), 0.0, ("a", "start"), 1.0, src("x", "constraint"))
+    problem.equal(("c", "start"), 0.0, ("b", "start"), 1.0, src("y", "constraint"))
+    problem.equal(("a", "start"), 0.0, ("c", "start"), 1.0, src("z", "constraint"))
+    with pytest.raises(Infeasible) as caught:
+        solve(problem)
+    assert {s.id for s in caught.value.conflict} == {"x", "y", "z"}
