@@ -18,10 +18,11 @@ set), it prints the time of :func:`realizer.scheduler.plan.schedule_block` (timi
 problem building, solving), the time of
 :func:`realizer.scheduler.solver.solve` alone on the prebuilt problem, the
 growth exponent fitted on log-log, and the 1,000-behaviour time against the
-goal of 20 ms. The primal active-set method adds one active constraint per
-iteration, each a fresh sparse factorisation, so with active inequalities
-the time grows much faster than linearly: a size whose projected time per
-call exceeds :data:`PROJECTED_LIMIT` is reported, not timed.
+goal of 20 ms. With active inequalities the primal-dual active-set method
+takes a few sparse factorisations whatever their number; should a solver
+change make the time grow much faster than linearly again, a size whose
+projected time per call exceeds :data:`PROJECTED_LIMIT` is reported, not
+timed.
 """
 
 from __future__ import annotations
