@@ -247,28 +247,28 @@ def solve(problem: Problem) -> dict[Key, float]:
     """
     keys = list(problem.keys)
     key_index = {key: index for index, key in enumerate(keys)}
-    phase_list = problem.phases
+    # One pass over the phases and one over the equalities (Python loops
+    # over thousands of tuples are a large part of a solve).
+    table = np.array(
+        [(key_index[a], key_index[b], p.weight, p.preferred, p.minimum, p.maximum)
+         for a, b, p, _ in problem.phases],
+        dtype=float,
+    ).reshape(-1, 6)  # fmt: skip
+    phase_a = table[:, 0].astype(np.int64)
+    phase_b = table[:, 1].astype(np.int64)
+    phase_w, phase_p, phase_min, phase_max = table[:, 2], table[:, 3], table[:, 4], table[:, 5]
+    ties = np.array(
+        [(key_index[r.a], key_index[r.b], r.kb - r.ka) for r in problem.equalities], dtype=float
+    ).reshape(-1, 3)
     # A phase whose bounds meet is an equality; as two rows it would make
-    # the active-set systems singular.
-    rigid = [
-        (b, a, phase.minimum)
-        for a, b, phase, _ in phase_list
-        if phase.maximum - phase.minimum <= TOLERANCE
-    ]
-    count = len(problem.equalities) + len(rigid)
-    # t_a - t_b = d for every equality (sync references, <synchronize>,
-    # fixed times, rigid phases).
-    eq_a = np.fromiter(
-        itertools.chain((key_index[r.a] for r in problem.equalities),
-                        (key_index[a] for a, _, _ in rigid)), np.int64, count)  # fmt: skip
-    eq_b = np.fromiter(
-        itertools.chain((key_index[r.b] for r in problem.equalities),
-                        (key_index[b] for _, b, _ in rigid)), np.int64, count)  # fmt: skip
-    eq_d = np.fromiter(
-        itertools.chain((r.kb - r.ka for r in problem.equalities),
-                        (d for _, _, d in rigid)), float, count)  # fmt: skip
+    # the active-set systems singular. t_a - t_b = d for every equality
+    # (sync references, <synchronize>, fixed times, rigid phases).
+    rigid = phase_max - phase_min <= TOLERANCE
+    eq_a = np.concatenate([ties[:, 0].astype(np.int64), phase_b[rigid]])
+    eq_b = np.concatenate([ties[:, 1].astype(np.int64), phase_a[rigid]])
+    eq_d = np.concatenate([ties[:, 2], phase_min[rigid]])
     key_class, key_offset = _eliminate(len(keys), eq_a, eq_b, eq_d)
-    if count and np.abs(key_offset[eq_a] - key_offset[eq_b] - eq_d).max() > TOLERANCE:
+    if eq_a.size and np.abs(key_offset[eq_a] - key_offset[eq_b] - eq_d).max() > TOLERANCE:
         conflict = find_conflict(problem)
         raise Infeasible(conflict or frozenset(), "contradictory equalities")
     n_classes = int(key_class.max(initial=-1)) + 1
@@ -276,15 +276,6 @@ def solve(problem: Problem) -> dict[Key, float]:
     pinned_class = int(key_class[block])
     # The pinned class's value makes t_block = 0.
     pinned_value = -float(key_offset[block])
-
-    phase_a = np.fromiter((key_index[a] for a, _, _, _ in problem.phases), np.int64,
-                          len(problem.phases))  # fmt: skip
-    phase_b = np.fromiter((key_index[b] for _, b, _, _ in problem.phases), np.int64,
-                          len(problem.phases))  # fmt: skip
-    phase_w = np.array([p.weight for _, _, p, _ in problem.phases], dtype=float)
-    phase_p = np.array([p.preferred for _, _, p, _ in problem.phases], dtype=float)
-    phase_min = np.array([p.minimum for _, _, p, _ in problem.phases], dtype=float)
-    phase_max = np.array([p.maximum for _, _, p, _ in problem.phases], dtype=float)
 
     # Cost components: classes linked by phases. Those without the pinned
     # class may shift freely and get the start-early pull.
