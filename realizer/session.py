@@ -150,6 +150,10 @@ class Session:
         or None when the block was refused (a warningFeedback says why).
         """
         self._advance(now)
+        # What time has passed since the last tick is reported first, so
+        # that the feedback queue stays in time order (and a block that
+        # ended meanwhile is done before a REPLACE or APPEND looks at it).
+        self._progress(now)
         try:
             result = parse_bml(text, source=f"bml@{now:.3f}", limits=self.limits.parse)
         except BmlError as exc:

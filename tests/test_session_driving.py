@@ -313,3 +313,20 @@ def test_the_face_engine_animates_a_smile_through_the_registry() -> None:
     assert not before.mask.any()
     assert during.mask.any() and np.abs(during.vector).max() > 0
     assert not np.any(after.vector)
+
+
+def test_a_block_arriving_between_ticks_keeps_feedback_in_time_order() -> None:
+    # b1's sync points between the last tick and b2's arrival come before
+    # b2's prediction, not after it.
+    session = Session()
+    session.receive_bml(bml("b1", NOD.format(start=0, end=2)), now=0.0)
+    session.take_feedback()
+    session.receive_bml(bml("b2", NOD.format(start=0, end=1)), now=1.0)
+    feedback = session.take_feedback()
+    times = [f.time for f in feedback]
+    assert times == sorted(times)
+    kinds = [(f.block_id, f.kind) for f in feedback]
+    assert ("b1", "syncPointProgress") in kinds
+    assert kinds.index(("b2", "prediction")) > max(
+        i for i, k in enumerate(kinds) if k == ("b1", "syncPointProgress")
+    )
