@@ -383,7 +383,9 @@ def solve(problem: Problem) -> dict[Key, float]:
     if b.size and (matrix @ x - b).min() < -TOLERANCE:
         pulled = start_var[free_start]
         solved = _primal_dual_active_set(hessian, gradient, matrix, ri, rj, b, x)
-        if solved is not None:
+        if solved is not None and not pulled.size:
+            x = solved[0]  # nothing was pulled: already the exact optimum
+        elif solved is not None:
             x = _polish(
                 exact, matrix, ri, rj, b, solved[1], solved[0], pulled, var_comp, pinned_comp
             )
