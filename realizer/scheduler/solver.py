@@ -137,11 +137,12 @@ class Problem:
     ) -> None:
         """A behaviour's sync points in order and the phases between them."""
         keys = [(behaviour_id, sync) for sync in syncs]
-        for key in keys:
-            self.keys.setdefault(key, None)
+        phases = tuple(phases)
+        if len(phases) != len(keys) - 1:
+            raise ValueError(f"{len(keys)} sync points need {len(keys) - 1} phases")
+        self.keys.update(dict.fromkeys(keys))  # known keys keep their place
         self.starts.append(keys[0])
-        for (a, b), phase in zip(itertools.pairwise(keys), phases, strict=True):
-            self.phases.append((a, b, phase, source))
+        self.phases.extend(zip(keys, keys[1:], phases, itertools.repeat(source)))
 
     def equal(self, a: Key, ka: float, b: Key, kb: float, source: Source) -> None:
         """``t_a + ka == t_b + kb``."""
