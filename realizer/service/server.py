@@ -329,6 +329,8 @@ class RealizerService:
             return _json_response(
                 {"realizer": __version__, "protocol": PROTOCOL_VERSION, "fps": self.config.fps}
             )
+        if url.path == "/favicon.ico":
+            return _response(http.HTTPStatus.NO_CONTENT, b"")
         found = self._static.get(url.path)
         if found is not None:
             body, content_type = found

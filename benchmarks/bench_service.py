@@ -1,0 +1,349 @@
+"""Load benchmark of the real-time service, on loopback only (issue 6).
+
+Starts ``realizer serve`` (the real session, parser and face) as a child
+process on a free loopback port, connects viewers and one submitter, and
+for each load (characters x viewers) measures
+
+* latency: from sending a BML block to receiving the first frame that shows
+  it (its FAPs set), at every viewer of that character: p50, p99, max;
+* frame interval jitter: receive intervals minus the frame period at one
+  viewer per character (p99 and max of |interval - period|), and the
+  server clock's own lateness (``/health``);
+* frames dropped: frame numbers a viewer never received (its mailbox kept
+  the newest), and ticks the server clock skipped;
+* drift: receive time minus (first receive time + frames / fps) over the
+  run, at one viewer;
+* CPU (percent of one core) and resident memory of the server process;
+* a stalled viewer (never reads, float32 vertex frames): the server's
+  memory before and after, with another viewer still served.
+
+Goal (issue 6): p99 latency under one frame period at 60 fps with 10
+characters and 100 viewers; no drift over 10 minutes (``--long``).
+
+The client side is one Python process on the same machine: with hundreds
+of viewers its own CPU use competes with the server's, so the figures are
+an upper bound of what a remote viewer would see. Timings are printed,
+never asserted. ``run(quick=True)`` takes about half a minute, the default
+under two minutes; ``python benchmarks/bench_service.py --long`` adds a
+10-minute run at 10 characters x 100 viewers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import itertools
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+import urllib.request
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import msgpack
+import psutil
+from websockets.asyncio.client import ClientConnection, connect
+
+ROOT = Path(__file__).resolve().parents[1]
+FPS = 60.0
+
+PROBE = (
+    '<bml xmlns="http://www.bml-initiative.org/bml/bml-1.0" id="{id}">'
+    '<faceLexeme id="s" lexeme="RAISE_MOUTH_CORNERS" amount="1" start="0" end="{end}"/>'
+    "</bml>"
+)
+
+
+@dataclass
+class ViewerLog:
+    character: str
+    receipts: list[tuple[int, float, bool]] = field(default_factory=list)  # n, time, any FAP
+
+
+@dataclass
+class Result:
+    characters: int
+    viewers: int
+    seconds: float
+    latencies: list[float]
+    probes: int
+    probes_seen: int
+    jitter_p99: float
+    jitter_max: float
+    drift: float
+    dropped: int
+    expected: int
+    skipped: int
+    lateness_max: float
+    cpu: float
+    rss_mb: float
+
+
+def start_server(fps: float, extra: list[str]) -> tuple[subprocess.Popen[bytes], int]:
+    process = subprocess.Popen(
+        [sys.executable, "-m", "realizer", "serve", "--port", "0", "--fps", str(fps), *extra],
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+    )
+    assert process.stderr is not None
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        line = process.stderr.readline().decode()
+        match = re.search(r"serving on \S+:(\d+)", line)
+        if match:
+            return process, int(match.group(1))
+        if not line and process.poll() is not None:
+            break
+    process.kill()
+    raise RuntimeError("realizer serve did not start")
+
+
+def stop_server(process: subprocess.Popen[bytes]) -> None:
+    process.terminate()
+    try:
+        process.wait(15)
+    except subprocess.TimeoutExpired:
+        process.kill()
+
+
+def health(port: int) -> dict[str, Any]:
+    with urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=5) as reply:
+        data: dict[str, Any] = json.loads(reply.read())
+        return data
+
+
+def percentile(values: list[float], q: float) -> float:
+    if not values:
+        return float("nan")
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q / 100 * (len(ordered) - 1)))]
+
+
+async def watch(ws: ClientConnection, log: ViewerLog, stop: asyncio.Event) -> None:
+    loop = asyncio.get_running_loop()
+    try:
+        async for data in ws:
+            now = loop.time()
+            message = msgpack.unpackb(data)
+            if message["type"] == "frame":
+                log.receipts.append((message["n"], now, bool(message.get("fap", {}).get("ids"))))
+            if stop.is_set():
+                break
+    except Exception:
+        pass
+
+
+async def measure(port: int, characters: int, viewers: int, seconds: float) -> dict[str, Any]:
+    loop = asyncio.get_running_loop()
+    names = [f"c{i:02d}" for i in range(characters)]
+    base = f"ws://127.0.0.1:{port}"
+    logs: list[ViewerLog] = []
+    connections: list[ClientConnection] = []
+    for i in range(viewers):
+        character = names[i % characters]
+        ws = await connect(f"{base}/view?character={character}&fap=true", compression=None)
+        await ws.recv()  # mesh
+        connections.append(ws)
+        logs.append(ViewerLog(character))
+    submitter = await connect(f"{base}/bml?format=json", compression=None)
+    await submitter.recv()  # welcome
+    stop = asyncio.Event()
+    readers = [
+        loop.create_task(watch(ws, log, stop)) for ws, log in zip(connections, logs, strict=True)
+    ]
+
+    async def drain_feedback() -> None:
+        try:
+            async for _ in submitter:
+                pass
+        except Exception:
+            pass
+
+    feedback = loop.create_task(drain_feedback())
+    await asyncio.sleep(0.5)  # let every viewer settle
+    probes: list[tuple[str, float]] = []
+    began = loop.time()
+    # One probe per character every 0.6 s (each lasts 0.25 s, so the face is
+    # neutral again before the next), spread evenly over the period.
+    spacing = 0.6 / characters
+    index = 0
+    while loop.time() - began < seconds:
+        character = names[index % characters]
+        block = PROBE.format(id=f"p{index}", end=0.25)
+        sent = loop.time()
+        await submitter.send(json.dumps({"type": "bml", "bml": block, "character": character}))
+        probes.append((character, sent))
+        index += 1
+        await asyncio.sleep(max(0.0, began + index * spacing - loop.time()))
+    await asyncio.sleep(0.5)
+    stop.set()
+    for ws in connections:
+        await ws.close()
+    await submitter.close()
+    for task in [*readers, feedback]:
+        task.cancel()
+    return {"logs": logs, "probes": probes, "began": began, "ended": loop.time()}
+
+
+def analyse(
+    characters: int, viewers: int, data: dict[str, Any], server: psutil.Process, cpu: float
+) -> Result:
+    period = 1 / FPS
+    logs: list[ViewerLog] = data["logs"]
+    latencies: list[float] = []
+    seen = pairs = 0
+    for character, sent in data["probes"]:
+        for log in logs:
+            if log.character != character:
+                continue
+            pairs += 1
+            first = next((t for _, t, lit in log.receipts if t >= sent and lit), None)
+            if first is not None and first - sent < 0.6:
+                latencies.append(first - sent)
+                seen += 1
+    jitter: list[float] = []
+    dropped = expected = 0
+    drift = 0.0
+    probe_viewers = {log.character: log for log in reversed(logs)}
+    for log in logs:
+        if len(log.receipts) < 2:
+            continue
+        numbers = [n for n, _, _ in log.receipts]
+        expected += numbers[-1] - numbers[0] + 1
+        dropped += numbers[-1] - numbers[0] + 1 - len(set(numbers))
+    for log in probe_viewers.values():
+        times = [t for _, t, _ in log.receipts]
+        jitter.extend(abs((b - a) - period) for a, b in itertools.pairwise(times))
+    if logs and len(logs[0].receipts) > 2:
+        (n0, t0, _), (n1, t1, _) = logs[0].receipts[0], logs[0].receipts[-1]
+        drift = (t1 - t0) - (n1 - n0) * period
+    return Result(
+        characters,
+        viewers,
+        data["ended"] - data["began"],
+        latencies,
+        pairs,
+        seen,
+        percentile(jitter, 99),
+        max(jitter, default=float("nan")),
+        drift,
+        dropped,
+        expected,
+        0,
+        0.0,
+        cpu,
+        server.memory_info().rss / 2**20,
+    )
+
+
+def run_load(characters: int, viewers: int, seconds: float) -> Result:
+    limits = ["--limit", f"viewers_per_character={max(256, viewers)}", "--limit", "characters=256"]
+    process, port = start_server(FPS, limits)
+    try:
+        server = psutil.Process(process.pid)
+        server.cpu_percent()
+        data = asyncio.run(measure(port, characters, viewers, seconds))
+        cpu = server.cpu_percent()
+        status = health(port)
+        result = analyse(characters, viewers, data, server, cpu)
+        result.skipped = status["clock"]["skipped"]
+        result.lateness_max = status["clock"]["max_lateness_seconds"]
+        return result
+    finally:
+        stop_server(process)
+
+
+async def stalled(port: int, seconds: float) -> tuple[int, int]:
+    """(frames the healthy viewer got, frames it should have got)."""
+    base = f"ws://127.0.0.1:{port}"
+    # max_queue=1: the client stops reading its socket once one message waits.
+    stuck = await connect(f"{base}/view?character=s&vertices=float32", max_queue=1, max_size=None)
+    healthy = await connect(f"{base}/view?character=s&fap=true")
+    await healthy.recv()
+    loop = asyncio.get_running_loop()
+    got = 0
+    began = loop.time()
+    while loop.time() - began < seconds:
+        await healthy.recv()
+        got += 1
+    await healthy.close()
+    stuck.transport.abort()
+    return got, int(seconds * FPS)
+
+
+def run_stalled(seconds: float) -> None:
+    process, port = start_server(FPS, [])
+    try:
+        server = psutil.Process(process.pid)
+        time.sleep(0.5)
+        before = server.memory_info().rss / 2**20
+        got, due = asyncio.run(stalled(port, seconds))
+        after = server.memory_info().rss / 2**20
+        print(
+            f"stalled viewer (float32 vertices, never reads) for {seconds:.0f} s: server RSS "
+            f"{before:.1f} -> {after:.1f} MiB; the other viewer got {got} of {due} frames"
+        )
+    finally:
+        stop_server(process)
+
+
+def print_table(results: list[Result]) -> None:
+    period_ms = 1000 / FPS
+    print(
+        f"{'chars':>5} {'viewers':>7} | {'lat p50':>7} {'p99':>6} {'max':>6} ms {'seen':>9} | "
+        f"{'jit p99':>7} {'max':>6} ms | {'dropped':>13} {'skip':>4} {'late':>5} ms | "
+        f"{'drift':>6} ms | {'cpu':>5} {'rss':>6}"
+    )
+    for r in results:
+        lat = [x * 1000 for x in r.latencies]
+        print(
+            f"{r.characters:>5} {r.viewers:>7} | {percentile(lat, 50):7.1f} "
+            f"{percentile(lat, 99):6.1f} {max(lat, default=float('nan')):6.1f}    "
+            f"{r.probes_seen:>4}/{r.probes:<4} | {r.jitter_p99 * 1000:7.2f} "
+            f"{r.jitter_max * 1000:6.2f}    | {r.dropped:>6}/{r.expected:<6} {r.skipped:>4} "
+            f"{r.lateness_max * 1000:5.1f}    | {r.drift * 1000:6.2f}    | {r.cpu:4.0f}% "
+            f"{r.rss_mb:5.0f}M"
+        )
+    goal = [r for r in results if r.characters == 10 and r.viewers == 100]
+    for r in goal:
+        p99 = percentile([x * 1000 for x in r.latencies], 99)
+        print(
+            f"goal (10 characters, 100 viewers): p99 latency {p99:.1f} ms vs one frame "
+            f"{period_ms:.1f} ms -> ratio {p99 / period_ms:.2f} "
+            f"({'met' if p99 < period_ms else 'NOT met'})"
+        )
+
+
+def run(quick: bool = False, long: bool = False) -> None:
+    loads = (
+        [(1, 1, 3.0), (10, 100, 4.0)]
+        if quick
+        else [
+            (1, 1, 4.0),
+            (1, 10, 4.0),
+            (10, 10, 4.0),
+            (10, 100, 5.0),
+            (50, 50, 4.0),
+            (50, 200, 4.0),
+        ]
+    )
+    print(f"service load on loopback, {FPS:g} fps, {os.cpu_count()} CPUs (server + clients)")
+    results = [run_load(c, v, s) for c, v, s in loads]
+    print_table(results)
+    run_stalled(3.0 if quick else 5.0)
+    if long:
+        print("long run: 10 characters x 100 viewers for 600 s (drift)")
+        print_table([run_load(10, 100, 600.0)])
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--long", action="store_true", help="add a 10-minute drift run")
+    options = parser.parse_args()
+    run(quick=options.quick, long=options.long)
