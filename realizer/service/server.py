@@ -426,6 +426,19 @@ class RealizerService:
             pump.cancel()
 
     def _on_submit(self, submitter: Submitter, text: str) -> None:
+        try:
+            self._realize(submitter, text)
+        except Exception:
+            # A bug, not the peer's fault: log it, answer without details
+            # (they may be security-sensitive), keep the connection.
+            logger.exception("internal error on a submitted message")
+            xml = warning_feedback_xml(
+                "", submitter.default_character, "CANNOT_CREATE_BEHAVIOR", "internal error"
+            )
+            warning = WireFeedback(submitter.default_character, "warning", "", self.now(), xml)
+            self._dispatch([warning], also=submitter)
+
+    def _realize(self, submitter: Submitter, text: str) -> None:
         now = self.now()
         try:
             request = read_submitter_message(text)

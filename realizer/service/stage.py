@@ -28,6 +28,7 @@ at all when the FAPs did not change.
 
 from __future__ import annotations
 
+import logging
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -42,6 +43,8 @@ from realizer.service import codec
 from realizer.service.errors import LimitExceeded, PeerError
 from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
 from realizer.service.messages import BlockState, DeltaPayload, ViewOptions, warning_feedback_xml
+
+logger = logging.getLogger("realizer.service")
 
 # -- what the stage needs from the session and the face (docs/interfaces.md) --
 
@@ -305,9 +308,16 @@ class Stage:
         now = self._advance(now)
         ticks: list[CharacterTick] = []
         for found in self.characters.values():
-            found.session.tick(now)
-            messages = self._route(found, found.session.take_feedback())
-            ticks.append(CharacterTick(found.id, now, found.session.frame(now), tuple(messages)))
+            try:
+                found.session.tick(now)
+                messages = self._route(found, found.session.take_feedback())
+                frame = found.session.frame(now)
+            except Exception:
+                # A failing session must not take every other character down
+                # with it: skip its frame this tick and say so in the log.
+                logger.exception("session of character %r failed at %.3f s", found.id, now)
+                continue
+            ticks.append(CharacterTick(found.id, now, frame, tuple(messages)))
         return ticks
 
     # -- helpers ----------------------------------------------------------------
