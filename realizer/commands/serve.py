@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         face = load_face(args.face)
         stage = Stage(session_factory(face), limits, default_character=args.character)
         assets = face_assets(face)
-    except (RealizerError, ValueError, OSError) as exc:
+    except (RealizerError, ValueError, OSError, ImportError) as exc:
         print(f"realizer serve: {exc}", file=sys.stderr)
         return 2
 

@@ -79,12 +79,13 @@ def test_the_browser_viewer_shows_a_smile_sent_from_the_page() -> None:
             page.wait_for_timeout(200)  # one more animation frame drawn
             smiling = canvas(page)
             log = page.evaluate("window.realizerViewer.feedback.map(f => f.text)")
+            where = {name: on_canvas(name) for name in ("8.3", "8.4", "3.5", "3.6")}
         finally:
             browser.close()
 
     difference = np.abs(smiling - neutral).sum(axis=2)
-    mouth = [patch(difference, on_canvas(p), 25) for p in ("8.3", "8.4")]
-    eyes = [patch(difference, on_canvas(p), 25) for p in ("3.5", "3.6")]
+    mouth = [patch(difference, where[p], 25) for p in ("8.3", "8.4")]
+    eyes = [patch(difference, where[p], 25) for p in ("3.5", "3.6")]
     # both mouth corners changed; the eyes did not (or far less)
     for corner in mouth:
         assert np.count_nonzero(corner > 30) >= 20
