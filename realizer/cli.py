@@ -19,6 +19,8 @@ from realizer import __version__
 COMMANDS: tuple[str, ...] = (
     "parse",
     "bench",
+    "facs",
+    "emotion",
     "fap_sheet",
     "face",
     "serve",

@@ -657,6 +657,40 @@ class Rig:
     deformers: list[Any]
 
 
+def target_table(
+    fap: int,
+    target: Target,
+    to_head: IntArray,
+    anchor: int,
+    axis: tuple[float, float, float],
+    still: IntArray,
+) -> Any:
+    """A one-interval FaceDefMesh for ``fap`` from a morph target: each
+    vertex moves along the target's offset, scaled so that the vertex
+    ``anchor`` moves one FAPU per FAP unit along ``axis``. The vertices
+    ``still`` (e.g. the upper teeth, which the targets nudge by a fraction
+    of a millimetre) are left out."""
+    from realizer.face.facedef import FaceDefMesh
+
+    idx = to_head[target.indices]
+    keep = (idx >= 0) & (np.linalg.norm(target.offsets, axis=1) > 1e-4) & ~np.isin(idx, still)
+    idx, offsets = idx[keep], target.offsets[keep]
+    along = float(offsets[np.flatnonzero(idx == anchor)[0]] @ np.asarray(axis))
+    if along <= 0:
+        raise ValueError(f"target for FAP {fap} does not move its feature point the standard way")
+    per_unit = offsets / along
+    order = np.argsort(idx)
+    return FaceDefMesh(
+        fap=fap,
+        intervals=(-1000.0, 1000.0),
+        vertices=tuple(int(i) for i in idx[order]),
+        displacements=tuple(
+            ((round(float(d[0]), 5), round(float(d[1]), 5), round(float(d[2]), 5)),)
+            for d in per_unit[order]
+        ),
+    )
+
+
 def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig:
     """Feature points, parts, vertex masks and one or more deformers for
     every FAP 3..68, in the classes of :mod:`realizer.face.model`.
@@ -761,31 +795,22 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     down, up, fwd = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
     left, right = (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)
 
-    # Jaw (3, 14, 15): the lower face moves with the chin, fading towards
-    # the jaw's corners; the lower teeth and the tongue turn or slide rigidly
-    # with it about the jaw joint, in front of the ear.
-    jaw_reach = dist("2.1", "2.13") * 1.1
-    pivot = np.array([0.0, (fp["10.7"][1] + fp["10.9"][1]) / 2 - 0.01, fp["10.7"][2] + 0.01])
-    radius = float(np.linalg.norm(fp["2.1"] - pivot))
-    ease(3, (0.0, -1.0, -0.25), jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
-    deformers.append(
-        TransformDeformer(
-            fap=3,
-            parts=("lower_teeth", "tongue"),
-            kind="rotation",
-            axis=(1.0, 0.0, 0.0),
-            scale=round(1.0 / radius, 4),
-            pivot=tuple(round(float(c), 5) for c in pivot),
-        )
-    )
-    ease(14, fwd, jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
-    deformers.append(
-        TransformDeformer(fap=14, parts=("lower_teeth", "tongue"), kind="translation", axis=fwd)
-    )
-    ease(15, right, jaw_reach, (1.0, 1.2, 1.4), -40, lower_face)
-    deformers.append(
-        TransformDeformer(fap=15, parts=("lower_teeth", "tongue"), kind="translation", axis=right)
-    )
+    # Jaw (3, 14, 15): FaceDefMesh tables (seed 002 section 2.1.3.4) made
+    # from the CC0 ARKit targets jawOpen, jawForward and jawRight, which an
+    # artist sculpted for this very mesh: they move chin, lower lip, the
+    # inside of the mouth, the lower teeth and the tongue together, as a jaw
+    # turning about its joint does. Influence spheres cannot do that here:
+    # hm08's mouth is a closed pocket of skin, and any falloff across it
+    # stretches a curtain of skin over the open mouth. Each table is scaled
+    # so that feature point 2.1 moves exactly one FAPU per unit along the
+    # FAP's axis (Table 7); the rest of the motion (the chin also goes back
+    # as the jaw opens) is the target's.
+    # The targets also nudge the eye sockets' insides by a fraction of a
+    # millimetre: only what lies below the nose tip belongs to the jaw.
+    above_nose = np.flatnonzero(v[:, 1] > fp["9.3"][1])
+    still = np.union1d(parts["upper_teeth"], above_nose)
+    for fap, name, axis in ((3, "jawOpen", down), (14, "jawForward", fwd), (15, "jawRight", right)):
+        deformers.append(target_table(fap, targets[name], to_head, fp_index["2.1"], axis, still))
 
     # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): each
     # midpoint's sphere reaches its neighbours; corners reach a third of the
@@ -861,7 +886,11 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             )
         )
 
-    # Eyebrows: inner, middle and outer points, each reaching its neighbour.
+    # Eyebrows: inner, middle and outer points, each reaching its neighbour;
+    # masked to the skin above the upper eyelids' outer edge (3.13, 3.14), so
+    # that raising a brow does not open the eye. brows[1]: left, [0]: right.
+    lid_top = {1: fp["3.13"][1], 0: fp["3.14"][1]}
+    brows = {side: skin[v[skin, 1] > lid_top[side]] for side in (0, 1)}
     for fap, point, neighbour in (
         (31, "4.1", "4.3"),
         (32, "4.2", "4.4"),
@@ -870,9 +899,9 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         (35, "4.5", "4.3"),
         (36, "4.6", "4.4"),
     ):
-        ease(fap, up, 1.2 * dist(point, neighbour), (1.0, 0.8, 1.0), -20)
-    ease(37, right, 1.2 * dist("4.1", "4.3"), (1.0, 0.8, 1.0), -20)
-    ease(38, left, 1.2 * dist("4.2", "4.4"), (1.0, 0.8, 1.0), -20)
+        ease(fap, up, 1.2 * dist(point, neighbour), (1.0, 0.8, 1.0), -20, brows[fap % 2])
+    ease(37, right, 1.2 * dist("4.1", "4.3"), (1.0, 0.8, 1.0), -20, brows[1])
+    ease(38, left, 1.2 * dist("4.2", "4.4"), (1.0, 0.8, 1.0), -20, brows[0])
 
     # Cheeks: puff sideways (and a little forward), lift up.
     cheek = 0.5 * mw0

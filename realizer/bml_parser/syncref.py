@@ -73,13 +73,41 @@ def _parse_number(text: str, raw: str) -> float:
     return value
 
 
-@lru_cache(maxsize=4096)
+# The common shapes, ``behaviour:sync[+|-offset]`` and a bare number, in one
+# match; anything else goes through the full grammar below.
+_FAST_RE = re.compile(
+    rf"\s*(?:(?P<time>[+-]?(?:{_NUMBER}))|(?P<beh>[A-Za-z_][\w.\-]*?):(?P<sync>[A-Za-z_][\w.]*)"
+    rf"(?:(?P<sign>[+-])(?P<num>{_NUMBER}))?)\s*"
+)
+
+
 def parse_sync_ref(raw: str, *, sync_aliases: tuple[tuple[str, str], ...] = ()) -> SyncRef:
     """Parse one sync reference; raise :class:`SyncRefError` if it is malformed.
 
     ``sync_aliases`` maps dialect sync names (``stroke_start``) to BML 1.0
     names (``strokeStart``); the raw text keeps the original spelling.
     """
+    match = _FAST_RE.fullmatch(raw)
+    if match is not None and not sync_aliases:
+        time = match.group("time")
+        if time is not None:
+            value = float(time)
+            if math.isfinite(value):
+                return SyncRef(raw, None, None, None, None, value)
+        else:
+            number = match.group("num")
+            offset = 0.0
+            if number is not None:
+                offset = float(number)
+                if match.group("sign") == "-":
+                    offset = -offset
+            if math.isfinite(offset):
+                return SyncRef(raw, match.group("beh"), match.group("sync"), None, None, offset)
+    return _parse_sync_ref(raw, sync_aliases)
+
+
+@lru_cache(maxsize=4096)
+def _parse_sync_ref(raw: str, sync_aliases: tuple[tuple[str, str], ...]) -> SyncRef:
     text = raw.strip()
     if not text:
         raise SyncRefError("empty sync reference")

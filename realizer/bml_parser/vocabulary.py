@@ -51,6 +51,10 @@ class BehaviourSpec:
     required: tuple[str, ...]
     numeric: tuple[str, ...]
     attributes: frozenset[str]
+    #: attribute name -> BML 1.0 sync name, draft spellings included
+    sync_attributes: dict[str, str]
+    #: (draft name, BML 1.0 name) pairs for sync references, () outside the draft
+    sync_aliases: tuple[tuple[str, str], ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,8 +77,15 @@ def vocabulary() -> Vocabulary:
     namespaces: dict[str, str] = raw["namespaces"]
     sync_sets: dict[str, list[str]] = raw["syncs"]
     specs: dict[tuple[str, str], BehaviourSpec] = {}
+    draft_names: dict[str, str] = raw["draft_sync_names"]
     for dialect, elements in raw["behaviours"].items():
         for element, entry in elements.items():
+            syncs = sync_sets[entry["syncs"]]
+            sync_attributes = {name: name for name in syncs}
+            aliases: tuple[tuple[str, str], ...] = ()
+            if dialect == "draft":
+                aliases = tuple(draft_names.items())
+                sync_attributes.update((a, b) for a, b in aliases if b in syncs)
             spec = BehaviourSpec(
                 dialect=dialect,
                 element=element,
@@ -83,10 +94,11 @@ def vocabulary() -> Vocabulary:
                 required=tuple(entry["required"]),
                 numeric=tuple(entry["numeric"]),
                 attributes=frozenset(entry["attributes"]),
+                sync_attributes=sync_attributes,
+                sync_aliases=aliases,
             )
             specs[(namespaces[dialect], element)] = spec
             if dialect == "draft":
                 specs[("", element)] = spec
-    draft_names: dict[str, str] = raw["draft_sync_names"]
     all_syncs = frozenset(CANONICAL_SYNCS) | frozenset(draft_names) | {"attackPeak"}
     return Vocabulary(specs, namespaces, draft_names, all_syncs)

@@ -80,7 +80,7 @@ def difference_over_underlay(
 
 def face_framing(face: Face) -> Any:
     """Frame the face proper (feature points of the chin, lips, eyes, brows,
-    cheeks and nose), or the whole mesh if those are missing."""
+    cheeks, nose and ears), or the whole mesh if those are missing."""
     import numpy as np
 
     from realizer.face.render import Framing
@@ -88,11 +88,11 @@ def face_framing(face: Face) -> Any:
     points = [
         p
         for name, p in face.params.feature_points.items()
-        if name.split(".")[0] in {"2", "3", "4", "5", "8", "9"}
+        if name.split(".")[0] in {"2", "3", "4", "5", "8", "9", "10"}
     ]
     if len(points) < 4:
         return Framing.of_points(np.asarray(face.vertices))
-    return Framing.of_points(np.asarray(points, dtype=np.float64), margin=0.12)
+    return Framing.of_points(np.asarray(points, dtype=np.float64), margin=0.06)
 
 
 def build_sheet(face: Face, tile: int = 128) -> npt.NDArray[np.uint8]:

@@ -23,7 +23,8 @@ def test_the_table_has_the_68_faps_in_order():
 
 def test_rows_carry_every_column_of_table_7():
     jaw = fap(3)
-    assert (jaw.name, jaw.unit, jaw.bidirectional, jaw.direction) == ("open_jaw", "MNS", False, "down")
+    assert (jaw.name, jaw.unit, jaw.bidirectional) == ("open_jaw", "MNS", False)
+    assert jaw.direction == "down"
     assert (jaw.group, jaw.feature_points, jaw.quant_step) == (2, ("2.1",), 4)
     assert (jaw.iframe_min, jaw.iframe_max, jaw.pframe_min, jaw.pframe_max) == (0, 1080, 0, 360)
     head = fap("head_pitch")
