@@ -39,7 +39,8 @@ from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 import numpy.typing as npt
-from websockets.asyncio.server import Server, ServerConnection, serve
+from websockets.asyncio.server import Server, ServerConnection
+from websockets.asyncio.server import serve as websocket_serve
 from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
@@ -256,7 +257,7 @@ class RealizerService:
     async def start(self) -> None:
         """Bind the port and start the clock."""
         loop = asyncio.get_running_loop()
-        self._server = await serve(
+        self._server = await websocket_serve(
             self._handle,
             self.config.host,
             self.config.port,
@@ -748,3 +749,15 @@ async def run_service(
             loop.remove_signal_handler(signum)
         await service.shutdown()
     return 0
+
+
+def serve_until_stopped(
+    config: ServiceConfig,
+    stage: Stage,
+    assets: FaceAssets,
+    *,
+    ready: Callable[[RealizerService], None] | None = None,
+) -> int:
+    """Run the service in a new event loop until SIGINT or SIGTERM; returns
+    the exit status (0). The blocking entry point of ``realizer serve``."""
+    return asyncio.run(run_service(config, stage, assets, ready=ready))
