@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import base64
 import itertools
 import json
 import os
@@ -47,7 +48,7 @@ from typing import Any
 
 import msgpack
 import psutil
-from websockets.asyncio.client import ClientConnection, connect
+from websockets.asyncio.client import connect
 
 ROOT = Path(__file__).resolve().parents[1]
 FPS = 60.0
@@ -127,18 +128,74 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, round(q / 100 * (len(ordered) - 1)))]
 
 
-async def watch(ws: ClientConnection, log: ViewerLog, stop: asyncio.Event) -> None:
-    loop = asyncio.get_running_loop()
-    try:
-        async for data in ws:
-            now = loop.time()
-            message = msgpack.unpackb(data)
-            if message["type"] == "frame":
-                log.receipts.append((message["n"], now, bool(message.get("fap", {}).get("ids"))))
-            if stop.is_set():
+class LeanViewer(asyncio.Protocol):
+    """A minimal WebSocket viewer (RFC 6455 client side, no extensions) for
+    the load: hundreds of them in one Python process must cost far less than
+    the server, or the figures measure the client. It records each frame's
+    number, arrival time and whether it has FAPs set; it answers pings."""
+
+    def __init__(self, port: int, character: str, log: ViewerLog) -> None:
+        self.request = (
+            f"GET /view?character={character}&fap=true HTTP/1.1\r\n"
+            f"Host: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+            f"Sec-WebSocket-Key: {base64.b64encode(os.urandom(16)).decode()}\r\n"
+            "Sec-WebSocket-Version: 13\r\n\r\n"
+        ).encode()
+        self.log = log
+        self.buffer = bytearray()
+        self.opened = False
+        self.mesh: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self.transport: asyncio.Transport | None = None
+        self.clock = asyncio.get_running_loop().time
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.Transport)
+        self.transport = transport
+        transport.write(self.request)
+
+    def data_received(self, data: bytes) -> None:
+        now = self.clock()
+        self.buffer += data
+        if not self.opened:
+            end = self.buffer.find(b"\r\n\r\n")
+            if end < 0:
+                return
+            if not self.buffer.startswith(b"HTTP/1.1 101"):
+                self.mesh.set_exception(RuntimeError(bytes(self.buffer[:80]).decode()))
+                return
+            del self.buffer[: end + 4]
+            self.opened = True
+        buffer = self.buffer
+        while len(buffer) >= 2:
+            opcode, length, start = buffer[0] & 0x0F, buffer[1] & 0x7F, 2
+            if length == 126:
+                length, start = int.from_bytes(buffer[2:4], "big"), 4
+            elif length == 127:
+                length, start = int.from_bytes(buffer[2:10], "big"), 10
+            if len(buffer) < start + length:
                 break
-    except Exception:
-        pass
+            payload = bytes(buffer[start : start + length])
+            del buffer[: start + length]
+            if opcode == 2:
+                message = msgpack.unpackb(payload)
+                if message["type"] == "frame":
+                    lit = bool(message.get("fap", {}).get("ids"))
+                    self.log.receipts.append((message["n"], now, lit))
+                elif message["type"] == "mesh" and not self.mesh.done():
+                    self.mesh.set_result(None)
+            elif opcode == 9:  # ping: answer with a masked pong
+                self.send(0xA, payload)
+
+    def send(self, opcode: int, payload: bytes) -> None:
+        mask = os.urandom(4)
+        masked = bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
+        assert self.transport is not None and len(payload) < 126
+        self.transport.write(bytes([0x80 | opcode, 0x80 | len(payload)]) + mask + masked)
+
+    def close(self) -> None:
+        if self.transport is not None and not self.transport.is_closing():
+            self.send(0x8, (1000).to_bytes(2, "big"))
+            self.transport.close()
 
 
 async def measure(port: int, characters: int, viewers: int, seconds: float) -> dict[str, Any]:
@@ -146,19 +203,17 @@ async def measure(port: int, characters: int, viewers: int, seconds: float) -> d
     names = [f"c{i:02d}" for i in range(characters)]
     base = f"ws://127.0.0.1:{port}"
     logs: list[ViewerLog] = []
-    connections: list[ClientConnection] = []
+    lean: list[LeanViewer] = []
     for i in range(viewers):
-        character = names[i % characters]
-        ws = await connect(f"{base}/view?character={character}&fap=true", compression=None)
-        await ws.recv()  # mesh
-        connections.append(ws)
-        logs.append(ViewerLog(character))
+        log = ViewerLog(names[i % characters])
+        _, viewer = await loop.create_connection(
+            lambda log=log: LeanViewer(port, log.character, log), "127.0.0.1", port
+        )
+        await asyncio.wait_for(viewer.mesh, 30)
+        lean.append(viewer)
+        logs.append(log)
     submitter = await connect(f"{base}/bml?format=json", compression=None)
     await submitter.recv()  # welcome
-    stop = asyncio.Event()
-    readers = [
-        loop.create_task(watch(ws, log, stop)) for ws, log in zip(connections, logs, strict=True)
-    ]
 
     async def drain_feedback() -> None:
         try:
@@ -188,13 +243,12 @@ async def measure(port: int, characters: int, viewers: int, seconds: float) -> d
         phase = chance.uniform(0, 1 / FPS)
         await asyncio.sleep(max(0.0, began + index * spacing + phase - loop.time()))
     await asyncio.sleep(0.5)
-    stop.set()
-    for ws in connections:
-        await ws.close()
+    ended = loop.time()
+    for viewer in lean:
+        viewer.close()
     await submitter.close()
-    for task in [*readers, feedback]:
-        task.cancel()
-    return {"logs": logs, "probes": probes, "began": began, "ended": loop.time()}
+    feedback.cancel()
+    return {"logs": logs, "probes": probes, "began": began, "ended": ended}
 
 
 def analyse(
