@@ -300,9 +300,7 @@ class FaceRig:
         keep = weights > MIN_INFLUENCE
         return vertices[keep], weights[keep]
 
-    def _pivot(
-        self, setting: TransformDeformer | RollDeformer | DilateDeformer
-    ) -> np.ndarray:
+    def _pivot(self, setting: TransformDeformer | RollDeformer | DilateDeformer) -> np.ndarray:
         if setting.pivot_fp is not None:
             return self.face.feature_position(setting.pivot_fp)
         if setting.pivot is not None:
@@ -340,10 +338,30 @@ class FaceRig:
             # +x side of a +z axis turns up under a positive rotation
             sign = 1.0 if float(np.cross(axis, side_normal)[1]) > 0 else -1.0
             return [
-                (_Transform(setting.fap - 1, "rotation", sign * unit, axis, pivot,
-                            ("roll+", id(setting))), plus, None),
-                (_Transform(setting.fap - 1, "rotation", -sign * unit, axis, pivot,
-                            ("roll-", id(setting))), minus, None),
+                (
+                    _Transform(
+                        setting.fap - 1,
+                        "rotation",
+                        sign * unit,
+                        axis,
+                        pivot,
+                        ("roll+", id(setting)),
+                    ),
+                    plus,
+                    None,
+                ),
+                (
+                    _Transform(
+                        setting.fap - 1,
+                        "rotation",
+                        -sign * unit,
+                        axis,
+                        pivot,
+                        ("roll-", id(setting)),
+                    ),
+                    minus,
+                    None,
+                ),
             ]
         vertices = self.face.parts_union(setting.parts).astype(np.int64)
         weights = None
@@ -353,8 +371,9 @@ class FaceRig:
         key: tuple[object, ...] = (setting.parts, setting.falloff if weights is not None else 0.0)
         if weights is not None:
             key = (*key, tuple(pivot))
-        return [(_Transform(setting.fap - 1, setting.kind, unit, axis, pivot, key),
-                 vertices, weights)]
+        return [
+            (_Transform(setting.fap - 1, setting.kind, unit, axis, pivot, key), vertices, weights)
+        ]
 
     # -- build matrices -----------------------------------------------------------------
 
@@ -369,9 +388,7 @@ class FaceRig:
     ) -> None:
         columns = len(col_fap)
         self.influence_fap = np.asarray(col_fap, dtype=np.int64)
-        self.influence_unit = (
-            self.fapu_per_fap[self.influence_fap] if columns else np.zeros(0)
-        )
+        self.influence_unit = self.fapu_per_fap[self.influence_fap] if columns else np.zeros(0)
         if columns == 0:
             self._has_influence = False
             return

@@ -203,7 +203,6 @@ def check_fap_vector(values: object) -> np.ndarray:
     if bad.size:
         info = FAP_TABLE[int(bad[0]) + 1]
         raise FapValueError(
-            f"FAP {info.number} ({info.name}) is unidirectional; "
-            f"{vector[bad[0]]:g} is negative"
+            f"FAP {info.number} ({info.name}) is unidirectional; {vector[bad[0]]:g} is negative"
         )
     return vector

@@ -35,9 +35,7 @@ class FeaturePoint:
 @cache
 def load_feature_points() -> dict[str, FeaturePoint]:
     """Read ``data/feature_points.csv``: name -> :class:`FeaturePoint`, in table order."""
-    text = resources.files("realizer.face").joinpath("data/feature_points.csv").read_text(
-        "utf-8"
-    )
+    text = resources.files("realizer.face").joinpath("data/feature_points.csv").read_text("utf-8")
     lines = [line for line in text.splitlines() if not line.startswith("#")]
     points: dict[str, FeaturePoint] = {}
     for row in csv.DictReader(lines):

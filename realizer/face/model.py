@@ -356,9 +356,7 @@ class Face:
     def _nearest(self, point: str) -> int:
         position = np.asarray(self.params.feature_points[point], dtype=np.float64)
         names = [p for p in natural_part(point) if p in self.parts]
-        candidates = (
-            self.parts_union(tuple(names)) if names else np.arange(self.vertex_count)
-        )
+        candidates = self.parts_union(tuple(names)) if names else np.arange(self.vertex_count)
         if candidates.size == 0:
             candidates = np.arange(self.vertex_count)
         distances = np.linalg.norm(self.vertices[candidates] - position, axis=1)

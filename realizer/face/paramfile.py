@@ -80,7 +80,10 @@ DEFORMER_TAGS = frozenset(_TAGS.values())
 def _parser() -> etree.XMLParser:
     # no entities, no network, no DTD loading: the file is data
     return etree.XMLParser(
-        resolve_entities=False, no_network=True, load_dtd=False, huge_tree=False,
+        resolve_entities=False,
+        no_network=True,
+        load_dtd=False,
+        huge_tree=False,
         remove_blank_text=False,
     )
 
@@ -182,15 +185,25 @@ def _read_deformer(element: Any) -> DeformerSetting:
             raise FaceFileError(f"{r.where}: type must be rotation or translation")
         pivot, pivot_fp = r.pivot()
         return TransformDeformer(
-            fap, tuple(r.text("parts").split()), kind, r.vec(), r.number("scale", 1.0),  # type: ignore[arg-type]
-            pivot, pivot_fp, r.number("falloff", 0.0),
+            fap,
+            tuple(r.text("parts").split()),
+            kind,
+            r.vec(),
+            r.number("scale", 1.0),  # type: ignore[arg-type]
+            pivot,
+            pivot_fp,
+            r.number("falloff", 0.0),
         )
     if tag in ("dilate-deformer", "roll-deformer"):
         pivot, pivot_fp = r.pivot()
         cls = DilateDeformer if tag == "dilate-deformer" else RollDeformer
         return cls(
-            fap, r.text("part", "tongue" if cls is RollDeformer else None),
-            r.vec(default=(0.0, 0.0, 1.0)), r.number("scale", 1.0), pivot, pivot_fp,
+            fap,
+            r.text("part", "tongue" if cls is RollDeformer else None),
+            r.vec(default=(0.0, 0.0, 1.0)),
+            r.number("scale", 1.0),
+            pivot,
+            pivot_fp,
         )
     if tag == "facedef-mesh":
         borders = tuple(float(x) for x in r.text("intervals").replace(",", " ").split())
@@ -205,12 +218,14 @@ def _read_deformer(element: Any) -> DeformerSetting:
                 raise FaceFileError(f"{cr.where}: displacements come in threes")
             vertices.append(cr.integer("vertex"))
             displacements.append(
-                tuple((numbers[i], numbers[i + 1], numbers[i + 2])
-                      for i in range(0, len(numbers), 3))
+                tuple(
+                    (numbers[i], numbers[i + 1], numbers[i + 2]) for i in range(0, len(numbers), 3)
+                )
             )
         try:
-            return FaceDefMesh(fap, borders, tuple(vertices), tuple(displacements),
-                               r.text("target", "Face"))
+            return FaceDefMesh(
+                fap, borders, tuple(vertices), tuple(displacements), r.text("target", "Face")
+            )
         except Exception as exc:
             raise FaceFileError(f"{r.where}: {exc}") from exc
     raise FaceFileError(f"{r.where}: not a deformer")  # pragma: no cover
@@ -324,8 +339,9 @@ def parse_parameters(data: bytes | str) -> FaceParameters:
             keep = _integers(section.text or "", f"line {section.sourceline}: <keep-syncs>")
         elif section.tag == "deformers":
             deformers.extend(
-                _read_deformer(e) for e in section if isinstance(e.tag, str)
-                and e.tag in DEFORMER_TAGS
+                _read_deformer(e)
+                for e in section
+                if isinstance(e.tag, str) and e.tag in DEFORMER_TAGS
             )
         elif section.tag == "vertex-masks":
             for element in _known(section, "vertex-mask"):
@@ -396,8 +412,12 @@ def serialise_parameters(params: FaceParameters) -> bytes:
 
 
 def _replace_or_append(
-    section: Any, existing: list[Any], wanted: list[Any], equal: Callable[[Any, Any], bool],
-    tag_of: Callable[[Any], str], fill: Callable[[Any, Any], None],
+    section: Any,
+    existing: list[Any],
+    wanted: list[Any],
+    equal: Callable[[Any, Any], bool],
+    tag_of: Callable[[Any], str],
+    fill: Callable[[Any, Any], None],
 ) -> None:
     for index, value in enumerate(wanted):
         if index < len(existing):
@@ -413,7 +433,7 @@ def _replace_or_append(
         else:
             element = etree.SubElement(section, tag_of(value))
             fill(element, value)
-    for element in existing[len(wanted):]:
+    for element in existing[len(wanted) :]:
         section.remove(element)
 
 
@@ -435,7 +455,9 @@ def _merge_points(section: Any, params: FaceParameters) -> None:
 def _merge_deformers(section: Any, params: FaceParameters) -> None:
     existing = [e for e in section if isinstance(e.tag, str) and e.tag in DEFORMER_TAGS]
     _replace_or_append(
-        section, existing, list(params.deformers),
+        section,
+        existing,
+        list(params.deformers),
         equal=lambda element, setting: _read_deformer(element) == setting,
         tag_of=lambda setting: _TAGS[type(setting)],
         fill=_fill_deformer,

@@ -66,13 +66,21 @@ def uv_ellipsoid(
     vertices = unit * np.asarray(radii) + np.asarray(centre)
     body = _grid_faces(rings, segments, True, 2)
     top = np.stack(
-        [np.zeros(segments, int), 2 + (np.arange(segments) + 1) % segments,
-         2 + np.arange(segments)], -1
+        [
+            np.zeros(segments, int),
+            2 + (np.arange(segments) + 1) % segments,
+            2 + np.arange(segments),
+        ],
+        -1,
     )
     last = 2 + (rings - 1) * segments
     bottom = np.stack(
-        [np.ones(segments, int), last + np.arange(segments),
-         last + (np.arange(segments) + 1) % segments], -1
+        [
+            np.ones(segments, int),
+            last + np.arange(segments),
+            last + (np.arange(segments) + 1) % segments,
+        ],
+        -1,
     )
     return vertices, np.vstack([top, body, bottom])
 
@@ -188,25 +196,52 @@ def build_test_head() -> Face:
         return int(lips[0] + round(u_deg / 15) % 24 * 12 + round(v_deg / 30) % 12)
 
     fp_vertex: dict[str, int] = {
-        "2.1": on_skull(0, -0.092), "2.10": on_skull(0, -0.080),
-        "2.11": on_skull(0.015, -0.086), "2.12": on_skull(-0.015, -0.086),
-        "2.13": on_skull(0.062, -0.055), "2.14": on_skull(-0.062, -0.055),
-        "2.2": lip(90, 180), "2.3": lip(270, 180), "2.4": lip(0, 180), "2.5": lip(180, 180),
-        "2.6": lip(60, 180), "2.7": lip(120, 180), "2.8": lip(300, 180), "2.9": lip(240, 180),
-        "8.1": lip(90, 0), "8.2": lip(270, 0), "8.3": lip(0, 0), "8.4": lip(180, 0),
-        "8.5": lip(60, 0), "8.6": lip(120, 0), "8.7": lip(300, 0), "8.8": lip(240, 0),
-        "8.9": lip(105, 0), "8.10": lip(75, 0),
-        "3.1": on_skull(EYE_X, EYE_Y + 0.014), "3.2": on_skull(-EYE_X, EYE_Y + 0.014),
-        "3.3": on_skull(EYE_X, EYE_Y - 0.014), "3.4": on_skull(-EYE_X, EYE_Y - 0.014),
-        "3.7": on_skull(EYE_X + 0.015, EYE_Y), "3.11": on_skull(EYE_X - 0.015, EYE_Y),
-        "3.8": on_skull(-EYE_X + 0.015, EYE_Y), "3.12": on_skull(-EYE_X - 0.015, EYE_Y),
-        "3.9": on_skull(EYE_X, EYE_Y - 0.018), "3.10": on_skull(-EYE_X, EYE_Y - 0.018),
-        "3.13": on_skull(EYE_X, EYE_Y + 0.018), "3.14": on_skull(-EYE_X, EYE_Y + 0.018),
-        "4.1": on_skull(0.016, 0.046), "4.2": on_skull(-0.016, 0.046),
-        "4.3": on_skull(0.033, 0.052), "4.4": on_skull(-0.033, 0.052),
-        "4.5": on_skull(0.050, 0.046), "4.6": on_skull(-0.050, 0.046),
-        "5.1": on_skull(0.048, MOUTH_Y), "5.2": on_skull(-0.048, MOUTH_Y),
-        "5.3": on_skull(0.040, -0.006), "5.4": on_skull(-0.040, -0.006),
+        "2.1": on_skull(0, -0.092),
+        "2.10": on_skull(0, -0.080),
+        "2.11": on_skull(0.015, -0.086),
+        "2.12": on_skull(-0.015, -0.086),
+        "2.13": on_skull(0.062, -0.055),
+        "2.14": on_skull(-0.062, -0.055),
+        "2.2": lip(90, 180),
+        "2.3": lip(270, 180),
+        "2.4": lip(0, 180),
+        "2.5": lip(180, 180),
+        "2.6": lip(60, 180),
+        "2.7": lip(120, 180),
+        "2.8": lip(300, 180),
+        "2.9": lip(240, 180),
+        "8.1": lip(90, 0),
+        "8.2": lip(270, 0),
+        "8.3": lip(0, 0),
+        "8.4": lip(180, 0),
+        "8.5": lip(60, 0),
+        "8.6": lip(120, 0),
+        "8.7": lip(300, 0),
+        "8.8": lip(240, 0),
+        "8.9": lip(105, 0),
+        "8.10": lip(75, 0),
+        "3.1": on_skull(EYE_X, EYE_Y + 0.014),
+        "3.2": on_skull(-EYE_X, EYE_Y + 0.014),
+        "3.3": on_skull(EYE_X, EYE_Y - 0.014),
+        "3.4": on_skull(-EYE_X, EYE_Y - 0.014),
+        "3.7": on_skull(EYE_X + 0.015, EYE_Y),
+        "3.11": on_skull(EYE_X - 0.015, EYE_Y),
+        "3.8": on_skull(-EYE_X + 0.015, EYE_Y),
+        "3.12": on_skull(-EYE_X - 0.015, EYE_Y),
+        "3.9": on_skull(EYE_X, EYE_Y - 0.018),
+        "3.10": on_skull(-EYE_X, EYE_Y - 0.018),
+        "3.13": on_skull(EYE_X, EYE_Y + 0.018),
+        "3.14": on_skull(-EYE_X, EYE_Y + 0.018),
+        "4.1": on_skull(0.016, 0.046),
+        "4.2": on_skull(-0.016, 0.046),
+        "4.3": on_skull(0.033, 0.052),
+        "4.4": on_skull(-0.033, 0.052),
+        "4.5": on_skull(0.050, 0.046),
+        "4.6": on_skull(-0.050, 0.046),
+        "5.1": on_skull(0.048, MOUTH_Y),
+        "5.2": on_skull(-0.048, MOUTH_Y),
+        "5.3": on_skull(0.040, -0.006),
+        "5.4": on_skull(-0.040, -0.006),
         "9.1": nearest(nose, (0.011, nose_c[1], nose_c[2])),
         "9.2": nearest(nose, (-0.011, nose_c[1], nose_c[2])),
         "9.3": nearest(nose, (0.0, nose_c[1], nose_c[2] + 0.012)),
@@ -216,7 +251,8 @@ def build_test_head() -> Face:
         "9.12": nearest(nose, (0.0, nose_c[1] + 0.010, nose_c[2] + 0.010)),
         "9.13": nearest(nose, (0.008, nose_c[1] + 0.006, nose_c[2] + 0.006)),
         "9.14": nearest(nose, (-0.008, nose_c[1] + 0.006, nose_c[2] + 0.006)),
-        "9.6": on_skull(-0.007, 0.012), "9.7": on_skull(0.007, 0.012),
+        "9.6": on_skull(-0.007, 0.012),
+        "9.7": on_skull(0.007, 0.012),
         "9.8": nearest(upper_teeth, (0, -0.043, mouth_z - 0.005)),
         "9.10": nearest(upper_teeth, (0, -0.050, mouth_z - 0.005)),
         "9.11": nearest(lower_teeth, (0, -0.0505, mouth_z - 0.005)),
@@ -225,8 +261,11 @@ def build_test_head() -> Face:
         "6.2": nearest(tongue, (0, tongue_c[1] + 0.006, tongue_c[2])),
         "6.3": nearest(tongue, (0.018, tongue_c[1], tongue_c[2])),
         "6.4": nearest(tongue, (-0.018, tongue_c[1], tongue_c[2])),
-        "11.1": on_skull(0, 0.085), "11.2": on_skull(-0.030, 0.080),
-        "11.3": on_skull(0.030, 0.080), "11.4": 0, "11.6": nearest(skull, (0, 0.025, -c_)),
+        "11.1": on_skull(0, 0.085),
+        "11.2": on_skull(-0.030, 0.080),
+        "11.3": on_skull(0.030, 0.080),
+        "11.4": 0,
+        "11.6": nearest(skull, (0, 0.025, -c_)),
     }
     for side, sx, (top, back, bottom, low, high) in (
         ("left", 1.0, ("10.1", "10.3", "10.5", "10.7", "10.9")),
@@ -260,10 +299,8 @@ def build_test_head() -> Face:
     for fap, side in ((65, "left"), (66, "right"), (67, "left"), (68, "right")):
         masks[fap] = tuple(int(i) for i in ears[side])
 
-    eye_centre = {side: tuple(float(c) for c in vertices[eyes[side]].mean(axis=0))
-                  for side in eyes}
-    jaw_radius = float(np.linalg.norm(
-        np.asarray(feature_points["9.11"]) - np.asarray(JAW_PIVOT)))
+    eye_centre = {side: tuple(float(c) for c in vertices[eyes[side]].mean(axis=0)) for side in eyes}
+    jaw_radius = float(np.linalg.norm(np.asarray(feature_points["9.11"]) - np.asarray(JAW_PIVOT)))
     deformers = _settings(eye_centre, jaw_radius, tongue_c)
     params = FaceParameters(
         feature_points=feature_points,

@@ -1,0 +1,322 @@
+"""The realizer session: one character's blocks, from BML text to feedback and frames.
+
+Sans-I/O (ARCHITECTURE.md decision 1): a session never reads a clock and
+never touches a socket. The caller passes the current time ``now`` (seconds,
+any monotonic clock) to every call and takes what is due::
+
+    session = Session("Alice")
+    session.receive_bml(text, now=0.0)     # parse, plan, solve: prediction
+    session.tick(0.5)                      # progress feedback up to 0.5 s
+    for feedback in session.take_feedback():
+        send(feedback.xml)
+    frame = session.frame(0.5)             # the FAP vector at 0.5 s
+
+Tests drive a session at any speed. The block lifecycle is one transition
+table, :data:`TRANSITIONS` (like h11's ``_state.py``); an illegal transition
+raises :class:`LifecycleError` naming the block, event and state.
+
+Composition (BML 1.0): MERGE starts a block now beside running ones, APPEND
+after every earlier block of the character has ended, REPLACE interrupts
+every running and pending block first. A block may refer to sync points of
+blocks already planned (``bml1:nod1:end``); they are fixed times for it.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from realizer.bml_parser import BmlError, Limits, WarningType, parse_bml
+from realizer.errors import RealizerError
+from realizer.feedback import (
+    Feedback,
+    block_progress,
+    prediction,
+    sync_point_progress,
+    warning,
+)
+from realizer.scheduler.engines import EngineRegistry
+from realizer.scheduler.plan import SchedulingFailed, TimedPlan, schedule_block
+
+
+class BlockState(enum.Enum):
+    PENDING = "pending"  # planned, start not yet reached
+    IN_EXECUTION = "in execution"
+    DONE = "done"
+    INTERRUPTED = "interrupted"
+    FAILED = "failed"
+
+
+class BlockEvent(enum.Enum):
+    START = "start"  # time passed the block's start
+    FINISH = "finish"  # time passed the block's end
+    INTERRUPT = "interrupt"  # interrupted by id, or by a REPLACE block
+    FAIL = "fail"  # the block could not be scheduled
+
+
+#: Every legal transition of a block's lifecycle; nothing else may happen.
+TRANSITIONS: dict[tuple[BlockState, BlockEvent], BlockState] = {
+    (BlockState.PENDING, BlockEvent.START): BlockState.IN_EXECUTION,
+    (BlockState.PENDING, BlockEvent.INTERRUPT): BlockState.INTERRUPTED,
+    (BlockState.PENDING, BlockEvent.FAIL): BlockState.FAILED,
+    (BlockState.IN_EXECUTION, BlockEvent.FINISH): BlockState.DONE,
+    (BlockState.IN_EXECUTION, BlockEvent.INTERRUPT): BlockState.INTERRUPTED,
+}
+
+ACTIVE = frozenset({BlockState.PENDING, BlockState.IN_EXECUTION})
+
+
+class LifecycleError(RealizerError):
+    """An event that the lifecycle table does not allow in the block's state."""
+
+
+@dataclass(slots=True)
+class BlockLifecycle:
+    block_id: str
+    state: BlockState = BlockState.PENDING
+
+    def handle(self, event: BlockEvent) -> BlockState:
+        try:
+            self.state = TRANSITIONS[(self.state, event)]
+        except KeyError:
+            raise LifecycleError(
+                f"block {self.block_id!r}: event {event.value!r} is not allowed "
+                f"in state {self.state.value!r}"
+            ) from None
+        return self.state
+
+
+@dataclass(slots=True)
+class _Record:
+    plan: TimedPlan
+    lifecycle: BlockLifecycle
+    # (global time, order, kind, behaviour id, sync) still to report
+    events: list[tuple[float, int, str, str, str]]
+    animations: list[Any] = field(default_factory=list)
+
+
+@dataclass(frozen=True, slots=True)
+class SessionLimits:
+    """Named limits of one session."""
+
+    parse: Limits = field(default_factory=Limits)
+    #: interrupted animations ease out over this many seconds
+    release: float = 0.2
+
+
+class Session:
+    """One character: its blocks, their lifecycles, feedback and face frames."""
+
+    def __init__(
+        self,
+        character_id: str = "",
+        face: Any = None,
+        *,
+        registry: EngineRegistry | None = None,
+        limits: SessionLimits | None = None,
+    ) -> None:
+        self.character_id = character_id
+        self.face = face
+        self.registry = registry or EngineRegistry.standard()
+        self.limits = limits or SessionLimits()
+        self.now = float("-inf")
+        self._blocks: dict[str, _Record] = {}
+        self._feedback: list[Feedback] = []
+        self._order = 0
+
+    # -- queries -----------------------------------------------------------
+
+    def state(self, block_id: str) -> BlockState | None:
+        record = self._blocks.get(block_id)
+        return record.lifecycle.state if record else None
+
+    def plan(self, block_id: str) -> TimedPlan | None:
+        record = self._blocks.get(block_id)
+        return record.plan if record else None
+
+    @property
+    def active_blocks(self) -> list[str]:
+        return [bid for bid, r in self._blocks.items() if r.lifecycle.state in ACTIVE]
+
+    # -- input -------------------------------------------------------------
+
+    def receive_bml(self, text: str | bytes, now: float) -> TimedPlan | None:
+        """Parse, plan and schedule a block arriving at ``now``.
+
+        Feedback (warnings, then the prediction) is queued; returns the plan,
+        or None when the block was refused (a warningFeedback says why).
+        """
+        self._advance(now)
+        try:
+            result = parse_bml(text, source=f"bml@{now:.3f}", limits=self.limits.parse)
+        except BmlError as exc:
+            self._emit(warning("", "", str(exc.warning_type),
+                               f"{exc.line}:{exc.column}: {exc.message}", now,
+                               self.character_id))  # fmt: skip
+            return None
+        block = result.block
+        if block.id in self._blocks and self._blocks[block.id].lifecycle.state in ACTIVE:
+            self._emit(
+                warning(
+                    block.id,
+                    block.id,
+                    str(WarningType.PARSING_FAILURE),
+                    f"block {block.id!r} is already running; the new one is refused",
+                    now,
+                    self.character_id,
+                )
+            )
+            return None
+        if block.composition == "REPLACE":
+            for block_id in self.active_blocks:
+                self.interrupt(block_id, now)
+        start = now
+        if block.composition == "APPEND":
+            ends = [r.plan.end for r in self._blocks.values() if r.lifecycle.state in ACTIVE]
+            start = max([now, *ends])
+        external: dict[tuple[str, str, str], float] = {}
+        for record in self._blocks.values():
+            external.update(record.plan.global_keys())
+        lifecycle = BlockLifecycle(block.id)
+        try:
+            plan = schedule_block(
+                block,
+                start=start,
+                registry=self.registry,
+                dropped=result.dropped,
+                external=external,
+                warnings=result.warnings,
+            )
+        except SchedulingFailed as exc:
+            for note in exc.warnings:
+                self._emit(warning(block.id, note.id, str(note.type), note.message, now,
+                                   self.character_id))  # fmt: skip
+            lifecycle.handle(BlockEvent.FAIL)
+            self._blocks[block.id] = _Record(
+                TimedPlan(block, start, start, ()), lifecycle, events=[]
+            )
+            return None
+        for note in plan.warnings:
+            self._emit(warning(block.id, note.id, str(note.type), note.message, now,
+                               self.character_id))  # fmt: skip
+        self._emit(
+            prediction(
+                block.id,
+                plan.start,
+                plan.end,
+                [(s.behaviour.local_name, s.id, s.times) for s in plan.behaviours],
+                now,
+                self.character_id,
+            )
+        )
+        events: list[tuple[float, int, str, str, str]] = [(plan.start, 0, "start", "", "")]
+        for scheduled in plan.behaviours:
+            for sync, time in scheduled.times.items():
+                events.append((time, 1, "sync", scheduled.id, sync))
+        events.append((plan.end, 2, "end", "", ""))
+        events.sort()
+        animations = []
+        for scheduled in plan.behaviours:
+            animation = self.registry.realize(scheduled.behaviour, scheduled.times)
+            if animation is not None:
+                animations.append(animation)
+        self._blocks[block.id] = _Record(plan, lifecycle, events, animations)
+        self._progress(now)
+        return plan
+
+    def interrupt(self, block_id: str, now: float) -> bool:
+        """Interrupt a pending or running block; False (and a warning) if there is none."""
+        self._advance(now)
+        self._progress(now)
+        record = self._blocks.get(block_id)
+        if record is None or record.lifecycle.state not in ACTIVE:
+            self._emit(
+                warning(
+                    block_id,
+                    block_id,
+                    str(WarningType.NO_SUCH_TARGET),
+                    f"no pending or running block {block_id!r} to interrupt",
+                    now,
+                    self.character_id,
+                )
+            )
+            return False
+        was_running = record.lifecycle.state is BlockState.IN_EXECUTION
+        record.lifecycle.handle(BlockEvent.INTERRUPT)
+        record.events.clear()
+        if was_running:
+            from realizer.face.tracks import InterruptedAnimation
+
+            record.animations = [
+                InterruptedAnimation(a, at=now, release=self.limits.release)
+                for a in record.animations
+            ]
+        else:
+            record.animations = []
+        self._emit(block_progress(block_id, "end", now, self.character_id, "INTERRUPTED"))
+        return True
+
+    def tick(self, now: float) -> None:
+        """Advance to ``now``: progress feedback for every sync point passed."""
+        self._advance(now)
+        self._progress(now)
+
+    # -- output ------------------------------------------------------------
+
+    def take_feedback(self) -> list[Feedback]:
+        """The queued feedback, oldest first; the queue is emptied."""
+        out, self._feedback = self._feedback, []
+        return out
+
+    def frame(self, now: float) -> Any:
+        """The face's FAP frame at ``now``: the mix of every animation active then."""
+        from realizer.face.frame import FapFrame
+        from realizer.face.tracks import mix
+
+        animations = [a for r in self._blocks.values() for a in r.animations]
+        if not animations:
+            return FapFrame.neutral(time=now)
+        limits = (
+            getattr(self.registry.engines[0], "limits", None) if self.registry.engines else None
+        )
+        values, mask = mix(animations, now, limits)
+        return FapFrame(np.asarray(values), np.asarray(mask), time=now)
+
+    # -- internals ---------------------------------------------------------
+
+    def _advance(self, now: float) -> None:
+        if now > self.now:
+            self.now = now
+
+    def _emit(self, feedback: Feedback) -> None:
+        self._feedback.append(feedback)
+
+    def _progress(self, now: float) -> None:
+        due: list[tuple[float, int, str, str, str, str]] = []
+        for block_id, record in self._blocks.items():
+            while record.events and record.events[0][0] <= now + 1e-12:
+                time, order, kind, behaviour_id, sync = record.events.pop(0)
+                due.append((time, order, block_id, kind, behaviour_id, sync))
+        due.sort()
+        for time, _, block_id, kind, behaviour_id, sync in due:
+            record = self._blocks[block_id]
+            if kind == "start":
+                record.lifecycle.handle(BlockEvent.START)
+                self._emit(block_progress(block_id, "start", time, self.character_id))
+            elif kind == "sync":
+                self._emit(
+                    sync_point_progress(
+                        block_id,
+                        behaviour_id,
+                        sync,
+                        time - record.plan.start,
+                        time,
+                        self.character_id,
+                    )
+                )
+            else:
+                record.lifecycle.handle(BlockEvent.FINISH)
+                self._emit(block_progress(block_id, "end", time, self.character_id))
