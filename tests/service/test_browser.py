@@ -14,8 +14,6 @@ from tests.service.browser import CHROMIUM, CHROMIUM_ARGS, chromium_missing, ser
 from tests.service.conftest import UNIT
 from tests.service.test_end_to_end import real_assets, real_face, real_sessions
 
-pytest.importorskip("realizer.session", reason="realizer.session (branch sched) is not merged yet")
-
 SMILE = """<bml xmlns="http://www.bml-initiative.org/bml/bml-1.0" id="browsersmile">
   <faceLexeme id="smile" lexeme="RAISE_MOUTH_CORNERS" amount="1"
               start="0" attackPeak="0.3" relax="20" end="21"/>

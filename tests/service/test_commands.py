@@ -29,8 +29,6 @@ from tests.service.test_end_to_end import (
     smile,
 )
 
-pytest.importorskip("realizer.session", reason="realizer.session (branch sched) is not merged yet")
-
 ROOT = Path(__file__).resolve().parents[2]
 
 

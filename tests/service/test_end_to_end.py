@@ -26,8 +26,6 @@ from realizer.service.server import WRITE_LIMIT, FaceAssets
 from tests.service.conftest import UNIT
 from tests.service.harness import running_service
 
-pytest.importorskip("realizer.session", reason="realizer.session (branch sched) is not merged yet")
-
 CONFORMANCE = Path(__file__).resolve().parents[2].parent / "shared" / "conformance"
 if not CONFORMANCE.exists():  # a worktree beside /work/shared
     CONFORMANCE = Path("/work/shared/conformance")
