@@ -265,10 +265,19 @@ class Stage:
             fb.block_id == block.id and fb.kind in ("prediction", "blockProgress")
             for fb in produced
         )
+        routed = self._route(found, produced)
         if accepted:
             found.open_blocks[block.id] = now
-            messages.append(BlockEvent(target, block.id, "accepted", now))
-        messages.extend(self._route(found, produced))
+            # "accepted" follows the block's prediction (or its first progress)
+            first = next(
+                i
+                for i, m in enumerate(routed)
+                if isinstance(m, WireFeedback)
+                and m.block_id == block.id
+                and m.kind in ("prediction", "blockProgress")
+            )
+            routed.insert(first + 1, BlockEvent(target, block.id, "accepted", now))
+        messages.extend(routed)
         if not accepted:
             messages.append(BlockEvent(target, block.id, "rejected", now))
         return SubmitResult(target, block.id, accepted, tuple(messages))
