@@ -134,9 +134,9 @@ class LeanViewer(asyncio.Protocol):
     the server, or the figures measure the client. It records each frame's
     number, arrival time and whether it has FAPs set; it answers pings."""
 
-    def __init__(self, port: int, character: str, log: ViewerLog) -> None:
+    def __init__(self, port: int, character: str, log: ViewerLog, vertices: str) -> None:
         self.request = (
-            f"GET /view?character={character}&fap=true HTTP/1.1\r\n"
+            f"GET /view?character={character}&fap=true&vertices={vertices} HTTP/1.1\r\n"
             f"Host: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
             f"Sec-WebSocket-Key: {base64.b64encode(os.urandom(16)).decode()}\r\n"
             "Sec-WebSocket-Version: 13\r\n\r\n"
@@ -198,7 +198,9 @@ class LeanViewer(asyncio.Protocol):
             self.transport.close()
 
 
-async def measure(port: int, characters: int, viewers: int, seconds: float) -> dict[str, Any]:
+async def measure(
+    port: int, characters: int, viewers: int, seconds: float, vertices: str
+) -> dict[str, Any]:
     loop = asyncio.get_running_loop()
     names = [f"c{i:02d}" for i in range(characters)]
     base = f"ws://127.0.0.1:{port}"
@@ -207,7 +209,7 @@ async def measure(port: int, characters: int, viewers: int, seconds: float) -> d
     for i in range(viewers):
         log = ViewerLog(names[i % characters])
         _, viewer = await loop.create_connection(
-            lambda log=log: LeanViewer(port, log.character, log), "127.0.0.1", port
+            lambda log=log: LeanViewer(port, log.character, log, vertices), "127.0.0.1", port
         )
         await asyncio.wait_for(viewer.mesh, 30)
         lean.append(viewer)
@@ -320,7 +322,7 @@ def analyse(
     )
 
 
-def run_load(characters: int, viewers: int, seconds: float) -> Result:
+def run_load(characters: int, viewers: int, seconds: float, vertices: str = "none") -> Result:
     limits = ["--limit", f"viewers_per_character={max(256, viewers)}", "--limit", "characters=256"]
     process, port = start_server(FPS, limits)
     try:
@@ -328,7 +330,7 @@ def run_load(characters: int, viewers: int, seconds: float) -> Result:
         server.cpu_percent()
         client = psutil.Process()
         client.cpu_percent()
-        data = asyncio.run(measure(port, characters, viewers, seconds))
+        data = asyncio.run(measure(port, characters, viewers, seconds, vertices))
         cpu = server.cpu_percent()
         print(f"  ({characters} x {viewers}: client process CPU {client.cpu_percent():.0f}%)")
         status = health(port)
@@ -426,8 +428,18 @@ def run(quick: bool = False, long: bool = False) -> None:
         ]
     )
     print(f"service load on loopback, {FPS:g} fps, {os.cpu_count()} CPUs (server + clients)")
+    print("viewers of FAP frames:")
     results = [run_load(c, v, s) for c, v, s in loads]
     print_table(results)
+    # Vertex viewers make the server deform each character's face once per
+    # tick while its FAPs change (the browser viewer's kind of stream).
+    print("viewers of int16 vertex deltas (and FAPs):")
+    print_table(
+        [
+            run_load(c, v, s, "int16")
+            for c, v, s in ([(1, 10, 3.0)] if quick else [(1, 10, 4.0), (10, 20, 4.0)])
+        ]
+    )
     run_stalled(3.0 if quick else 5.0)
     if long:
         print("long run: 10 characters x 100 viewers for 600 s (drift)")
