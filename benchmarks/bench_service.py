@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import base64
+import bisect
 import itertools
 import json
 import os
@@ -271,14 +272,17 @@ def analyse(
     latencies: list[float] = []
     delivery: list[float] = []  # frame due time -> received, for every receipt
     seen = pairs = 0
+    # Per viewer, the arrival times of frames with FAPs set, sorted: the
+    # first at or after a probe was sent is the frame that showed it.
+    lit_times = [[t for _, t, lit in log.receipts if lit] for log in logs]
     for character, sent in data["probes"]:
-        for log in logs:
+        for log, times in zip(logs, lit_times, strict=True):
             if log.character != character:
                 continue
             pairs += 1
-            first = next((t for _, t, lit in log.receipts if t >= sent and lit), None)
-            if first is not None and first - sent < 0.6:
-                latencies.append(first - sent)
+            at = bisect.bisect_left(times, sent)
+            if at < len(times) and times[at] - sent < 0.6:
+                latencies.append(times[at] - sent)
                 seen += 1
     for log in logs:
         delivery.extend(t - (started + n * period) for n, t, _ in log.receipts)
