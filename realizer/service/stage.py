@@ -150,6 +150,7 @@ class Character:
 
 _ROOT_ID = re.compile(rb"<(?:\w+:)?bml\b[^>]*?\sid\s*=\s*[\"']([^\"']{0,200})[\"']")
 _FEEDBACK_ID = re.compile(r"\sid\s*=\s*[\"']([^\"']*)[\"']")
+_INTERRUPTED = re.compile(r"\sstatus\s*=\s*[\"']INTERRUPTED[\"']")
 
 
 def _guess_block_id(text: str) -> str:
@@ -337,7 +338,9 @@ class Stage:
             messages.append(WireFeedback(found.id, fb.kind, fb.block_id, fb.time, fb.xml))
             if _is_block_end(fb) and fb.block_id in found.open_blocks:
                 del found.open_blocks[fb.block_id]
-                state: BlockState = "interrupted" if fb.block_id in found.interrupting else "done"
+                # interrupted by us, or by the session (a REPLACE block)
+                interrupted = fb.block_id in found.interrupting or _INTERRUPTED.search(fb.xml)
+                state: BlockState = "interrupted" if interrupted else "done"
                 found.interrupting.discard(fb.block_id)
                 messages.append(BlockEvent(found.id, fb.block_id, state, fb.time))
         return messages

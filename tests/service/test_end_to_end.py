@@ -266,3 +266,23 @@ def test_an_interrupt_ends_a_running_block_as_interrupted() -> None:
     messages = asyncio.run(scenario())
     assert messages[-1]["state"] == "interrupted"
     assert any(m.get("kind") == "blockProgress" for m in messages)
+
+
+def test_a_replace_block_ends_the_blocks_it_replaces_as_interrupted() -> None:
+    replace = smile("second", 0, 0.3).replace('id="second"', 'id="second" composition="REPLACE"')
+
+    async def scenario() -> list[dict[str, Any]]:
+        async with (
+            running_service(real_sessions(), real_assets()) as service,
+            connect(f"ws://127.0.0.1:{service.port}/bml?format=json") as submitter,
+        ):
+            await read_json(submitter)
+            await submitter.send(json.dumps({"type": "bml", "bml": smile("first", 0, 60)}))
+            while (await read_json(submitter)).get("state") != "accepted":
+                pass
+            await submitter.send(json.dumps({"type": "bml", "bml": replace}))
+            return await until_block_final(submitter, "second")
+
+    messages = asyncio.run(scenario())
+    states = [(m["block"], m["state"]) for m in messages if m["type"] == "block"]
+    assert states == [("first", "interrupted"), ("second", "accepted"), ("second", "done")]
