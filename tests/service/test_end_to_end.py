@@ -211,7 +211,9 @@ def test_oversized_and_malformed_input_is_answered_and_nothing_else_is_disturbed
     async def scenario() -> None:
         async with (
             running_service(real_sessions(), real_assets(), limits=limits) as service,
-            connect(f"ws://127.0.0.1:{service.port}/view") as viewer,
+            # read only now and then: an unbounded client queue, so that
+            # closing at the end does not wait behind unread frames
+            connect(f"ws://127.0.0.1:{service.port}/view", max_queue=None) as viewer,
             connect(f"ws://127.0.0.1:{service.port}/bml?format=json") as careful,
             connect(f"ws://127.0.0.1:{service.port}/bml?format=json") as careless,
         ):
