@@ -5,24 +5,27 @@ process on a free loopback port, connects viewers and one submitter, and
 for each load (characters x viewers) measures
 
 * latency: from sending a BML block to receiving the first frame that shows
-  it (its FAPs set), at every viewer of that character: p50, p99, max;
-* frame interval jitter: receive intervals minus the frame period at one
-  viewer per character (p99 and max of |interval - period|), and the
-  server clock's own lateness (``/health``);
+  it (its FAPs set), at every viewer of that character: p50, p99; and its
+  service part, delivery: from a frame's due time (frame 0 is on the host's
+  monotonic clock, ``/health``) to its arrival at each viewer;
+* frame interval jitter: |receive interval - period| at one viewer per
+  character (p99, max), and the server clock's own lateness (``/health``);
 * frames dropped: frame numbers a viewer never received (its mailbox kept
   the newest), and ticks the server clock skipped;
-* drift: receive time minus (first receive time + frames / fps) over the
-  run, at one viewer;
+* drift: how the fastest delivery changed from the first to the last fifth
+  of the run (a clock that drifted would move it; load raises it too);
 * CPU (percent of one core) and resident memory of the server process;
+* viewers of int16 vertex deltas, which make the server deform faces;
 * a stalled viewer (never reads, float32 vertex frames): the server's
   memory before and after, with another viewer still served.
 
 Goal (issue 6): p99 latency under one frame period at 60 fps with 10
 characters and 100 viewers; no drift over 10 minutes (``--long``).
 
-The client side is one Python process on the same machine: with hundreds
-of viewers its own CPU use competes with the server's, so the figures are
-an upper bound of what a remote viewer would see. Timings are printed,
+The viewers are lean raw-protocol clients (``LeanViewer``) in one Python
+process on the same machine; their CPU use still competes with the
+server's, so the figures are an upper bound of what a remote viewer would
+see. Timings are printed,
 never asserted. ``run(quick=True)`` takes about half a minute, the default
 under two minutes; ``python benchmarks/bench_service.py --long`` adds a
 10-minute run at 10 characters x 100 viewers.
@@ -386,7 +389,8 @@ def print_table(results: list[Result]) -> None:
     print(
         "latency: BML sent -> first frame showing it received (ms); delivery: frame due -> "
         "received (ms); jitter: |receive interval - period| at one viewer per character (ms); "
-        "late: server tick start after its due time (ms)"
+        "late: server tick start after its due time (ms); drift: change of the fastest "
+        "delivery from the first to the last fifth of the run (ms)"
     )
     print(
         f"{'chars':>5} {'viewers':>7} | {'latency p50':>11} {'p99':>6} {'seen':>11} | "

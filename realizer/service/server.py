@@ -267,9 +267,9 @@ class RealizerService:
             # would cost CPU per viewer for little gain.
             compression=None,
             close_timeout=self.config.shutdown_timeout,
-            # Per-connection buffer before send() waits: about a dozen
-            # vertex frames of the default face, so a viewer that stops
-            # reading holds at most this much plus one mailbox frame.
+            # Per-connection buffer before send() waits: a viewer that stops
+            # reading holds at most this much plus two frames (one written
+            # past the limit, one in its mailbox).
             write_limit=WRITE_LIMIT,
         )
         self._start = loop.time()
