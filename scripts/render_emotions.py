@@ -58,6 +58,11 @@ def label(image: Image.Image, text: str) -> Image.Image:
     return framed
 
 
+def save(image: Image.Image, path: Path) -> None:
+    """PNG with an adaptive 256-colour palette: smooth shading keeps, files stay small."""
+    image.convert("P", palette=Image.Palette.ADAPTIVE, colors=256).save(path, optimize=True)
+
+
 def grid(tiles: list[list[Image.Image]], gap: int = 4) -> Image.Image:
     width = max(sum(t.width for t in row) + gap * (len(row) - 1) for row in tiles)
     height = sum(max(t.height for t in row) for row in tiles) + gap * (len(tiles) - 1)
@@ -104,7 +109,7 @@ def main() -> None:
         archetype = measured.archetype(name)
         profile = converter.for_point(archetype.angle, archetype.activation)
         row.append(label(render(profile.configuration()), f"{name} ({profile.sources[0]})"))
-    grid([row]).save(args.out / "emotions_archetypes.png")
+    save(grid([row]), args.out / "emotions_archetypes.png")
 
     sheet = []
     for name in ORDER:
@@ -123,7 +128,7 @@ def main() -> None:
                 for number in converter.profiles.numbers(name)
             ]
         )
-    grid(sheet).save(args.out / "emotions_profiles.png")
+    save(grid(sheet), args.out / "emotions_profiles.png")
 
     rows = []
     for index, name in enumerate(WHEEL_NAMES):
@@ -139,7 +144,7 @@ def main() -> None:
     # two blocks of 8 angles side by side keep the sheet readable
     half = len(rows) // 2
     joined = [left + right for left, right in zip(rows[:half], rows[half:], strict=True)]
-    grid(joined).save(args.out / "emotions_wheel_walk.png")
+    save(grid(joined), args.out / "emotions_wheel_walk.png")
     renderer.close()
     print(
         f"wrote emotions_archetypes.png, emotions_profiles.png, emotions_wheel_walk.png: {args.out}"

@@ -4,8 +4,8 @@
 name) and value (FAPU-scaled units, seed 002 Table 7) on the default face (or
 ``--face PATH``) and renders it from the fixed frontal camera of
 :mod:`realizer.face.render`. ``realizer face FILE.fap -o face.png`` takes the
-first frame of a .fap file (needs realizer.face.fapfile; ``--frame N`` picks
-another).
+first frame of a .fap file (:mod:`realizer.face.fapfile`; ``--frame N``
+picks another).
 """
 
 from __future__ import annotations
@@ -39,22 +39,20 @@ def parse_fap_assignments(text: str) -> npt.NDArray[np.float64]:
 
 
 def fap_file_frame(path: str, frame: int) -> npt.NDArray[np.float64]:
-    """The FAP vector of frame ``frame`` of a .fap file."""
-    import importlib
-
+    """The FAP vector of frame ``frame`` (from 0) of a .fap file
+    (:mod:`realizer.face.fapfile`). Raises ValueError for a missing frame."""
     import numpy as np
 
-    try:
-        fapfile: Any = importlib.import_module("realizer.face.fapfile")
-    except ImportError as error:
-        raise ValueError("reading .fap files needs realizer.face.fapfile; use --faps") from error
-    fap = fapfile.read_fap_file(path)
+    from realizer.face.fapfile import read_fap_file
+
+    fap = read_fap_file(path)
     if not 0 <= frame < fap.frames:
         raise ValueError(f"{path} has {fap.frames} frames, no frame {frame}")
     return np.asarray(fap.values[frame], dtype=np.float64)
 
 
 def run(args: argparse.Namespace) -> int:
+    from realizer.errors import RealizerError
     from realizer.face.deform import deform
     from realizer.face.render import FaceRenderer, RenderUnavailableError, save_png
 
@@ -63,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
             values = fap_file_frame(args.file, args.frame)
         else:
             values = parse_fap_assignments(args.faps or "")
-    except (ValueError, OSError) as error:
+    except (ValueError, OSError, RealizerError) as error:
         print(f"realizer face: {error}")
         return 2
     if args.face:

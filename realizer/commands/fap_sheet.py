@@ -92,7 +92,7 @@ def face_framing(face: Face) -> Any:
     ]
     if len(points) < 4:
         return Framing.of_points(np.asarray(face.vertices))
-    return Framing.of_points(np.asarray(points, dtype=np.float64), margin=0.06)
+    return Framing.of_points(np.asarray(points, dtype=np.float64), margin=0.16)
 
 
 def build_sheet(face: Face, tile: int = 128) -> npt.NDArray[np.uint8]:

@@ -33,6 +33,9 @@ def run(args: Any) -> int:
 
     try:
         recording = record_block(args.file.read_bytes(), args.fps, args.max_seconds)
+    except ImportError as error:  # no realizer.session in this checkout
+        print(f"realizer plot-faps: error: no realizer session available: {error}", file=sys.stderr)
+        return 2
     except (OSError, ValueError, RealizerError) as error:
         print(f"realizer plot-faps: error: {args.file}: {error}", file=sys.stderr)
         return 2

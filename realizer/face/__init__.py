@@ -10,9 +10,13 @@ The public names are imported lazily, so ``import realizer.face`` stays cheap:
 * :class:`Fapu` -- :mod:`realizer.face.fapu`
 * :class:`FapFrame` -- :mod:`realizer.face.frame`
 * :class:`Face`, :class:`FaceParameters` -- :mod:`realizer.face.model`
-* :func:`deform`, :class:`FaceRig` -- :mod:`realizer.face.deform`
+* :class:`FaceRig`, :func:`rig_for` -- :mod:`realizer.face.deform`; the function
+  ``deform`` itself is imported from there (``from realizer.face.deform import
+  deform``): the package attribute ``deform`` is that submodule
+* :func:`load_default_face` -- :mod:`realizer.face.default` (the MakeHuman head)
 * :func:`load_face`, :func:`save_face` -- :mod:`realizer.face.paramfile`
 * :func:`build_test_head` -- :mod:`realizer.face.testhead`
+* :func:`load_default_face` -- :mod:`realizer.face.default`
 """
 
 from __future__ import annotations
@@ -28,8 +32,9 @@ _EXPORTS = {
     "FapFrame": "frame",
     "Face": "model",
     "FaceParameters": "model",
-    "deform": "deform",
     "FaceRig": "deform",
+    "rig_for": "deform",
+    "load_default_face": "default",
     "load_face": "paramfile",
     "save_face": "paramfile",
     "build_test_head": "testhead",

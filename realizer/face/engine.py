@@ -87,6 +87,7 @@ from realizer.face.tracks import (
     KeyframeAnimation,
     check_curve,
 )
+from realizer.scheduler.timing import Phase, TimingModel, TimingModelError
 
 FACE_TYPES = ("faceLexeme", "faceFacs", "faceShift", "fap", "emotion", "viseme", "expression")
 HEAD_TYPES = ("head",)
@@ -125,24 +126,6 @@ DIRECTIONS: dict[str, tuple[float, float]] = {
 DEFAULT_TARGET_ANGLE_DEG = 20.0
 
 
-@dataclass(frozen=True, slots=True)
-class PhasePreference:
-    """Preferred duration (s), stretch weight and minimum (s) of one phase."""
-
-    preferred: float
-    weight: float = 1.0
-    minimum: float = 0.0
-    maximum: float = math.inf
-
-
-@dataclass(frozen=True, slots=True)
-class TimingPreference:
-    """A behaviour's sync points in canonical order and its phase preferences."""
-
-    syncs: tuple[str, ...]
-    phases: tuple[PhasePreference, ...]
-
-
 @lru_cache(maxsize=1)
 def load_engine_data() -> dict[str, Any]:
     path = DATA_DIR / "engine.toml"
@@ -150,8 +133,8 @@ def load_engine_data() -> dict[str, Any]:
         return tomllib.load(handle)
 
 
-def _phase(entry: Mapping[str, float]) -> PhasePreference:
-    return PhasePreference(
+def _phase(entry: Mapping[str, float]) -> Phase:
+    return Phase(
         float(entry["preferred"]), float(entry.get("weight", 1.0)), float(entry.get("minimum", 0.0))
     )
 
@@ -248,7 +231,7 @@ class FaceEngine:
     def handles(self, behaviour: Behaviour) -> bool:
         return behaviour.type in HANDLED_TYPES
 
-    def timing(self, behaviour: Behaviour) -> TimingPreference:
+    def timing(self, behaviour: Behaviour) -> TimingModel:
         """Sync points and phase preferences (seconds) of a handled behaviour."""
         data = load_engine_data()["timing"]
         syncs = tuple(behaviour.syncs)
@@ -272,21 +255,32 @@ class FaceEngine:
             raise ConversionError(
                 f"{kind} {behaviour.id!r}: {len(syncs)} sync points but {len(table)} timing phases"
             )
-        return TimingPreference(syncs, tuple(table))
+        return TimingModel(syncs, tuple(table))
 
-    def plan(self, behaviour: Behaviour) -> Any:
-        """The scheduler's TimingModel for the behaviour (docs/interfaces.md)."""
-        from realizer.scheduler.timing import Phase, TimingModel
+    def plan(self, behaviour: Behaviour) -> TimingModel:
+        """The scheduler's TimingModel for the behaviour (docs/interfaces.md).
 
-        preference = self.timing(behaviour)
-        return TimingModel(
-            syncs=preference.syncs,
-            phases=tuple(
-                Phase(p.preferred, p.weight, p.minimum, p.maximum) for p in preference.phases
-            ),
-        )
+        The behaviour's parameters are checked here, before scheduling: one
+        the engine cannot realize (an unknown lexeme, emotion word, AU ...)
+        raises TimingModelError, which the scheduler turns into a
+        CANNOT_CREATE_BEHAVIOR warning while the rest of the block goes on.
+        """
+        try:
+            self.validate(behaviour)
+            return self.timing(behaviour)
+        except ConversionError as error:
+            raise TimingModelError(str(error)) from None
 
     # --- what ------------------------------------------------------------------
+
+    def validate(self, behaviour: Behaviour) -> None:
+        """Raise ConversionError if the behaviour's parameters cannot be realized."""
+        if behaviour.type in FACE_TYPES:
+            self.configuration(behaviour)
+        elif behaviour.type in GAZE_TYPES:
+            self._gaze(behaviour)
+        elif behaviour.type == "head":
+            self._head_lexeme(behaviour)
 
     def configuration(self, behaviour: Behaviour) -> FapConfiguration:
         """The FAP values at full level of a face behaviour (not head or gaze)."""
@@ -353,8 +347,9 @@ class FaceEngine:
     ) -> FapAnimation | KeyframeAnimation | None:
         """The behaviour's animation at its solved sync ``times`` (global seconds).
 
-        Raises ConversionError for parameters it cannot realize (the session
-        answers with a warning); returns None for behaviours it does not handle.
+        Parameters were checked by :meth:`plan`; a behaviour that did not pass
+        it raises ConversionError here. Returns None for behaviours it does not
+        handle.
         """
         kind = behaviour.type
         if kind not in HANDLED_TYPES:
@@ -382,12 +377,8 @@ class FaceEngine:
     def _head(
         self, behaviour: Behaviour, times: Mapping[str, float], priority: int
     ) -> KeyframeAnimation:
-        lexeme = (behaviour.lexeme or behaviour.param("type") or "").strip().upper()
+        lexeme = self._head_lexeme(behaviour)
         table = load_engine_data()["head"]
-        if lexeme not in table:
-            raise ConversionError(
-                f"head {behaviour.id!r}: unknown lexeme {lexeme!r}; known: {', '.join(table)}"
-            )
         fap = int(table[lexeme]["fap"])
         amplitude = float(table[lexeme]["amplitude"]) * _number_param(behaviour, "amount", 0.5)
         strokes = [times[s] for s in _strokes(tuple(behaviour.syncs)) if s in times]
@@ -430,11 +421,26 @@ class FaceEngine:
             behaviour.id,
         )
 
+    def _head_lexeme(self, behaviour: Behaviour) -> str:
+        lexeme = (behaviour.lexeme or behaviour.param("type") or "").strip().upper()
+        table = load_engine_data()["head"]
+        if lexeme not in table:
+            raise ConversionError(
+                f"head {behaviour.id!r}: unknown lexeme {lexeme!r}; known: {', '.join(table)}"
+            )
+        return lexeme
+
     def _gaze(self, behaviour: Behaviour) -> FapConfiguration:
         data = load_engine_data()["gaze"]
         target = (behaviour.param("target") or "").strip().upper().replace("_", "")
-        direction_word = (behaviour.param("offsetDirection") or "").strip().upper()
-        angle = _number_param(behaviour, "offsetAngle", 0.0)
+        # the draft dialect (seed 000) names them direction and angle
+        direction_word = (
+            (behaviour.param("offsetDirection") or behaviour.param("direction") or "")
+            .strip()
+            .upper()
+        )
+        angle_name = "offsetAngle" if behaviour.param("offsetAngle") is not None else "angle"
+        angle = _number_param(behaviour, angle_name, 0.0)
         yaw = pitch = 0.0
         if target in DIRECTIONS:
             dy, dp = DIRECTIONS[target]

@@ -19,8 +19,9 @@ A **FaceDefTransform** animates a transform node: a rotation about an axis
 (angle = FAP x FAPU x scale), a translation along an axis (distance = FAP x
 FAPU x scale) or a scale. Seed 002 Table 5: FAP 23 rotates the node LeftEyeX
 about (0, -1, 0) with scale 1. Here the node is a set of named parts of the
-face, turning about a pivot (see :class:`TransformDeformer` in
-:mod:`realizer.face.model`).
+face, turning about a pivot: :class:`realizer.face.model.FaceDefTransform`
+(the same class as ``TransformDeformer``; rotations and translations --
+no face part needs a scale transform).
 """
 
 from __future__ import annotations

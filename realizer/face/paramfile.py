@@ -187,9 +187,9 @@ def _read_deformer(element: Any) -> DeformerSetting:
         return TransformDeformer(
             fap,
             tuple(r.text("parts").split()),
-            kind,
+            "rotation" if kind == "rotation" else "translation",
             r.vec(),
-            r.number("scale", 1.0),  # type: ignore[arg-type]
+            r.number("scale", 1.0),
             pivot,
             pivot_fp,
             r.number("falloff", 0.0),
@@ -533,5 +533,8 @@ def load_face(path: str | Path) -> Face:
             raise FaceFileError(f"{mesh_path} has no array {key!r}")
     parts = {k[5:]: v for k, v in arrays.items() if k.startswith("part:")}
     attributes = {k[5:]: v for k, v in arrays.items() if k.startswith("attr:")}
-    name = str(arrays["name"]) if "name" in arrays else mesh_path.stem
+    name = mesh_path.stem
+    if "name" in arrays and arrays["name"].size:
+        # a 0-d string array (save_face) or a one-element one (other writers)
+        name = str(arrays["name"].reshape(-1)[0])
     return Face(arrays["vertices"], arrays["faces"], parts, params, name, attributes)

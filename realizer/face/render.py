@@ -60,6 +60,7 @@ IRIS_RGB = (0.30, 0.42, 0.55)
 PUPIL_RGB = (0.03, 0.03, 0.03)
 TEETH_RGB = (0.95, 0.93, 0.85)
 TONGUE_RGB = (0.75, 0.35, 0.35)
+MOUTH_RGB = (0.32, 0.10, 0.10)
 BACKGROUND_RGB = (0.0, 0.0, 0.0)
 
 #: Iris and pupil as angles (radians) from the eyeball's front pole: an iris
@@ -165,7 +166,7 @@ def vertex_colours(
     colours[:] = SKIN_RGB
     if lip_vertices is not None:
         colours[lip_vertices] = LIP_RGB
-    for name, rgb in (("teeth", TEETH_RGB), ("tongue", TONGUE_RGB)):
+    for name, rgb in (("teeth", TEETH_RGB), ("tongue", TONGUE_RGB), ("mouth_inside", MOUTH_RGB)):
         indices = face_part(face, name)
         if indices is not None:
             colours[indices] = rgb

@@ -394,3 +394,56 @@ def _settings(
 
 def _vec(values: tuple[float, ...]) -> Vec3:
     return (float(values[0]), float(values[1]), float(values[2]))
+
+
+def subdivide_face(face: Face, times: int = 1) -> Face:
+    """The face with every triangle split in four, ``times`` times (for benchmarks).
+
+    A new mid-edge vertex joins a part or a vertex mask when both ends of its
+    edge are in it. The vertices are then ordered part by part (skin, eyes,
+    teeth, tongue), so that each rigid part is one contiguous range, which
+    the rig moves as a view (as a real face file should store them).
+    Feature points are positions and stay valid; settings must not name
+    vertex indices (FaceDefMesh), which this reordering would break.
+    """
+    import trimesh
+
+    vertices = np.asarray(face.vertices, dtype=np.float64)
+    faces = np.asarray(face.faces)
+    n = len(vertices)
+    groups: dict[str, np.ndarray] = {f"part:{k}": v for k, v in face.parts.items()}
+    groups.update({f"mask:{k}": np.asarray(v, dtype=np.int64)
+                   for k, v in face.params.vertex_masks.items()})
+    keys = list(groups)
+    for _ in range(times):
+        member = np.zeros((len(vertices), len(keys)))
+        for column, key in enumerate(keys):
+            member[groups[key], column] = 1.0
+        vertices, faces, attributes = trimesh.remesh.subdivide(  # type: ignore[no-untyped-call]
+            vertices, faces, vertex_attributes={"member": member}
+        )
+        inside = np.asarray(attributes["member"]) > 0.999
+        groups = {key: np.flatnonzero(inside[:, column]) for column, key in enumerate(keys)}
+    assert np.allclose(vertices[:n], face.vertices)
+    label = np.zeros(len(vertices), dtype=np.int64)
+    for rank, part in enumerate(
+        ("left_eye", "right_eye", "upper_teeth", "lower_teeth", "tongue"), start=1
+    ):
+        if f"part:{part}" in groups:
+            label[groups[f"part:{part}"]] = rank
+    order = np.argsort(label, kind="stable")
+    new_index = np.empty_like(order)
+    new_index[order] = np.arange(order.size)
+    vertices = vertices[order]
+    faces = new_index[faces]
+    groups = {key: np.sort(new_index[value]) for key, value in groups.items()}
+    parts = {k[5:]: v for k, v in groups.items() if k.startswith("part:")}
+    masks = {int(k[5:]): tuple(int(i) for i in v) for k, v in groups.items()
+             if k.startswith("mask:")}
+    params = FaceParameters(
+        feature_points=face.params.feature_points,
+        keep_syncs=face.params.keep_syncs,
+        deformers=face.params.deformers,
+        vertex_masks=masks,
+    )
+    return Face(vertices, faces, parts, params, name=f"{face.name}-x{4 ** times}")

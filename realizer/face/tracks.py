@@ -36,13 +36,14 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
-from typing import Literal, Protocol
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from realizer.face.convert.config import FAP_COUNT, FapConfiguration
 from realizer.face.convert.errors import ConversionError
+from realizer.scheduler.engines import Animation
 
 CurveKind = Literal["linear", "hermite", "triangular"]
 Blend = Literal["add", "replace"]
@@ -151,21 +152,6 @@ class Envelope:
             release = 1.0 - ease(self.curve, _ramp(x, self.relax, self.end))
             shape = np.minimum(attack, release)
         return np.where(inside, shape, 0.0)
-
-
-class Animation(Protocol):
-    """What the face engine returns for one behaviour (docs/interfaces.md)."""
-
-    @property
-    def start(self) -> float: ...
-
-    @property
-    def end(self) -> float: ...
-
-    @property
-    def priority(self) -> int: ...
-
-    def evaluate(self, now: float) -> tuple[FloatArray, FloatArray]: ...
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -85,6 +85,8 @@ class TimedPlan:
     warnings: tuple[BmlWarning, ...] = ()
     dropped: frozenset[str] = frozenset()
     models: dict[str, TimingModel] = field(default_factory=dict, compare=False)
+    #: behaviours scheduled for their feedback that no engine can animate
+    unrealized: frozenset[str] = frozenset()
 
     @property
     def id(self) -> str:
@@ -241,16 +243,22 @@ def schedule_block(
     registry = registry or EngineRegistry.standard()
     notes: list[BmlWarning] = list(warnings)
     models: dict[str, TimingModel] = {}
+    unrealized: set[str] = set()
     for behaviour in block.behaviours:
         if behaviour.id in dropped:
             continue
         try:
             models[behaviour.id] = registry.plan(behaviour)
         except TimingModelError as exc:
+            # Nothing is lost: the behaviour keeps its place in the schedule
+            # and its feedback (the corpus's testhead_selftimed.xml times a
+            # head with lexeme "Y"), but no engine animates it.
+            models[behaviour.id] = registry.default.plan(behaviour)
+            unrealized.add(behaviour.id)
             notes.append(
                 BmlWarning(
                     WarningType.CANNOT_CREATE_BEHAVIOR,
-                    f"{behaviour.id}: {exc}",
+                    f"{behaviour.id}: {exc}; it is scheduled and reported but not shown",
                     id=f"{block.id}:{behaviour.id}",
                 )
             )
@@ -318,6 +326,7 @@ def schedule_block(
         warnings=tuple(notes),
         dropped=frozenset(dropped | skip | (set(b.id for b in block.behaviours) - set(models))),
         models=models,
+        unrealized=frozenset(unrealized),
     )
 
 

@@ -23,11 +23,13 @@ equalities are eliminated up front by a union-find with offsets, and when the
 constraints cannot all hold, a negative cycle in the constraint graph
 (Bellman-Ford) names exactly the constraints that conflict.
 
-The start preference is a tiny quadratic pull (``PULL`` times the phase
-weights) on the starts of behaviours whose group is not tied to any fixed
-time. Shifting such a group changes no phase cost, so the pull only moves it
-left until its earliest sync point reaches the block start; groups tied to a
-fixed time get no pull, so their optimum is exactly the quadratic optimum.
+The start preference is a small quadratic pull (``PULL`` times the mean
+phase weight) towards 0 on one start of each group of behaviours that no
+fixed time holds. Shifting such a group changes no phase cost, so the pull
+only decides the shift; the group is then moved so that its earliest sync
+point is at the block start, and once inequalities are involved, the final
+working set is solved again without the pull. Groups tied to a fixed time
+get no pull, so the result is exactly the optimum of the phase costs.
 
 The QP is solved on the sparse KKT system. Most blocks need one solve: the
 optimum without inequalities, each free group shifted to start at 0, already
@@ -57,7 +59,7 @@ Key = tuple[str, str]
 BLOCK_START: Key = ("bml", "start")
 
 #: Weight of the start-early pull relative to the mean phase weight.
-PULL = 1e-9
+PULL = 1e-3
 #: Constraint tolerance, seconds.
 TOLERANCE = 1e-9
 
@@ -265,7 +267,14 @@ def solve(problem: Problem) -> dict[Key, float]:
     constraints cannot all hold.
     """
     classes = _Classes(problem.keys)
-    for r in problem.equalities:
+    # A phase whose bounds meet is an equality; as two rows it would make
+    # the active-set systems singular.
+    rigid = [
+        _Relation(b, 0.0, a, phase.minimum, source)
+        for a, b, phase, source in problem.phases
+        if phase.maximum - phase.minimum <= TOLERANCE
+    ]
+    for r in [*problem.equalities, *rigid]:
         if not classes.union(r.a, r.ka, r.b, r.kb):
             conflict = find_conflict(problem)
             raise Infeasible(conflict or frozenset({r.source}), "contradictory equalities")
@@ -376,7 +385,7 @@ def solve(problem: Problem) -> dict[Key, float]:
             problem.phases, phase_a.tolist(), phase_b.tolist(), strict=True
         ):
             add_row(ib, ia, phase.minimum, source)
-            if math.isfinite(phase.maximum):
+            if math.isfinite(phase.maximum) and phase.maximum - phase.minimum > TOLERANCE:
                 add_row(ia, ib, -phase.maximum, source)
         # t >= 0: per class, only the tightest (the earliest key) matters.
         lowest: dict[int, int] = {}
@@ -421,7 +430,8 @@ def solve(problem: Problem) -> dict[Key, float]:
         if start is None:
             conflict = find_conflict(problem)
             raise Infeasible(conflict or frozenset(), "the constraints cannot all hold")
-        solved = _active_set(hessian, gradient, matrix, b, start, exact)
+        pulled = start_var[free_start] if start_rows.size else np.zeros(0, dtype=np.int64)
+        solved = _active_set(hessian, gradient, matrix, b, start, exact, pulled, var_comp)
         if solved is None:
             raise SchedulingError("the scheduler's active-set method did not converge")
         x = solved
@@ -514,6 +524,8 @@ def _active_set(
     b: np.ndarray,
     x: np.ndarray,
     exact: tuple[sp.csc_matrix, np.ndarray],
+    pulled: np.ndarray,
+    var_comp: np.ndarray,
 ) -> np.ndarray | None:
     """Primal active-set method from the feasible point ``x`` (Nocedal & Wright 16.3).
 
@@ -530,18 +542,18 @@ def _active_set(
         step, multipliers = _kkt(hessian, hessian @ x + gradient, matrix, working, np.zeros(m))
         if step is None:
             return None
-        if np.abs(step).max(initial=0.0) <= 1e-12 * (1 + np.abs(x).max(initial=0.0)):
+        size = float(np.abs(step).max(initial=0.0))
+        if size <= 1e-10 * (1 + np.abs(x).max(initial=0.0)):
             if not working or multipliers is None or multipliers.min() >= -1e-12:
-                polished, _ = _kkt(exact[0], exact[1], matrix, working, b, quiet=True)
-                if polished is not None and (matrix @ polished - b).min(initial=0.0) >= -1e-7:
-                    return polished
-                return x
+                return _polish(exact, matrix, b, working, x, pulled, var_comp)
             drop = working.pop(int(np.argmin(multipliers)))
             in_working[drop] = False
             continue
         change = matrix @ step
         slack = matrix @ x - b
-        blocking = np.flatnonzero((change < -1e-14) & ~in_working)
+        # Rows the step hardly moves along cannot block it; a tiny threshold
+        # would admit rows dependent on the working set (a singular system).
+        blocking = np.flatnonzero((change < -1e-9 * size) & ~in_working)
         alpha, block = 1.0, -1
         if blocking.size:
             ratios = np.maximum(slack[blocking], 0.0) / -change[blocking]
@@ -553,6 +565,38 @@ def _active_set(
             working.append(block)
             in_working[block] = True
     return None
+
+
+def _polish(
+    exact: tuple[sp.csc_matrix, np.ndarray],
+    matrix: sp.csr_matrix,
+    b: np.ndarray,
+    working: list[int],
+    x: np.ndarray,
+    pulled: np.ndarray,
+    var_comp: np.ndarray,
+) -> np.ndarray:
+    """Solve the final working set again without the pull.
+
+    Groups that no active row holds keep the shift the pull gave them (their
+    pulled start is then at 0 and the pull exerts no force); in the others
+    the active rows pin the shift, and the pull's small force on them is
+    removed, which makes the result the exact optimum of the phase costs.
+    """
+    touched = set(var_comp[matrix[working].indices].tolist()) if working else set()
+    hold = [int(v) for v in pulled if int(var_comp[v]) not in touched]
+    n = x.size
+    extra = sp.csr_matrix(
+        (np.ones(len(hold)), (np.arange(len(hold)), np.asarray(hold, dtype=np.int64))),
+        shape=(len(hold), n),
+    )
+    augmented = sp.vstack([matrix, extra], format="csr")
+    bounds = np.concatenate([b, x[hold]])
+    rows = working + list(range(b.size, b.size + len(hold)))
+    polished, _ = _kkt(exact[0], exact[1], augmented, rows, bounds, quiet=True)
+    if polished is not None and (matrix @ polished - b).min(initial=0.0) >= -1e-7:
+        return polished
+    return x
 
 
 def _kkt(

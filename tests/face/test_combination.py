@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from realizer.face.deform import deform
 from realizer.face.model import EaseDeformer
@@ -86,3 +88,72 @@ def test_the_rule_is_continuous_in_every_value():
 def test_one_fap_is_linear_in_its_value():
     assert offsets({4: 200.0}) == pytest.approx(2 * offsets({4: 100.0}), abs=1e-3)
     assert offsets({4: -100.0}) == pytest.approx(-offsets({4: 100.0}), abs=1e-3)
+
+
+# Seed 000 Figure 7.1: three upper-lip points raised together, the middle one with
+# an influence sphere that is too large. Side points at 10 and 30 mm, the middle
+# one at 20 mm; sizes 9.5 mm (sides) and 15.5 mm (middle).
+LIP = line_face(
+    (
+        EaseDeformer(56, DOWN, SIZE),
+        EaseDeformer(51, DOWN, 0.0155),
+        EaseDeformer(55, DOWN, SIZE),
+    ),
+    points={"8.6": (0.010, 0.0, 0.0), "8.1": (0.020, 0.0, 0.0), "8.5": (0.030, 0.0, 0.0)},
+)
+THREE = {56: 100.0, 51: 100.0, 55: 100.0}
+
+
+def seed_000_average(face, values: dict[int, float]) -> np.ndarray:
+    """FaceEditor's rule (seed 000 §4.3.1): average the displacements a vertex gets."""
+    singles = np.stack([
+        (deform(face, fap_vector({number: value})) - face.vertices).astype(np.float64)
+        for number, value in values.items()
+    ])
+    reached = np.any(singles != 0, axis=2).sum(axis=0)
+    total = singles.sum(axis=0)
+    return total / np.maximum(reached, 1)[:, None] / UNIT_M
+
+
+def test_averaging_makes_the_w_shaped_lip_of_seed_000_figure_7_1():
+    down = -seed_000_average(LIP, THREE)[:, 1]
+    # the side points do not reach their FAP's 100 units: the lip sags beside the middle
+    assert down[10] < 75.0 and down[30] < 75.0
+    assert down[20] == pytest.approx(100.0, abs=1e-3)
+    # a dip between a side point and the middle: a w, not a flat lip
+    assert down[15] < down[10]
+
+
+def test_our_rule_raises_all_three_points_fully_and_keeps_the_lip_flat():
+    down = -(deform(LIP, fap_vector(THREE)) - LIP.vertices)[:, 1].astype(np.float64) / UNIT_M
+    assert down[[10, 20, 30]] == pytest.approx([100.0, 100.0, 100.0], abs=1e-3)
+    # between them the lip stays within 2 % of flat (where the spheres barely
+    # overlap the sum stays just under the cap), against the 25 %+ sag of averaging
+    assert down[10:31].min() > 98.0
+    # and never more than the FAPs ask for (a plain sum would bulge to ~190 at 15 mm)
+    assert down.max() <= 100.0 + 1e-3
+
+
+# -- properties over random values -----------------------------------------------------
+
+AMOUNTS = st.floats(-500.0, 500.0, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(a4=AMOUNTS, a8=AMOUNTS, a6=AMOUNTS)
+def test_no_vertex_moves_further_than_the_largest_fap_reaching_it(a4, a8, a6):
+    moved = offsets({4: a4, 8: a8, 6: a6})
+    reach4, reach8 = influence(0.0) > 0, influence(0.006) > 0
+    # y: FAPs 4 and 8 push along -y by their value
+    largest_y = np.maximum(np.abs(a4) * reach4, np.abs(a8) * reach8)
+    assert (np.abs(moved[:, 1]) <= largest_y + 1e-3).all()
+    # x: FAP 6 alone, exactly linear
+    assert moved[:, 0] == pytest.approx(a6 * influence(0.0), abs=1e-3)
+    # negating every value mirrors the result
+    assert offsets({4: -a4, 8: -a8, 6: -a6}) == pytest.approx(-moved, abs=1e-3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(value=AMOUNTS)
+def test_a_single_fap_is_exact_for_any_value(value):
+    assert -offsets({8: value})[:, 1] == pytest.approx(value * influence(0.006), abs=1e-3)

@@ -266,3 +266,22 @@ def test_tongue_roll_raises_both_borders(face: Face) -> None:
     offsets = moved(face, 47, 30000)
     for border in ("6.3", "6.4"):
         assert offsets[face.feature_vertex(border), 1] > 0.001
+
+
+def test_the_inside_of_the_mouth_is_its_own_part_behind_the_lips(face: Face) -> None:
+    inside = face.part("mouth_inside")
+    assert 100 < inside.size < 0.2 * face.part("skin").size
+    assert np.isin(inside, face.part("skin")).all()
+    lips_front = min(fp(face, "2.2")[2], fp(face, "2.3")[2])
+    assert face.vertices[inside, 2].max() <= lips_front + 1e-6
+    assert not np.isin([face.feature_vertex(n) for n in ("2.2", "2.3", "8.1", "8.2")], inside).any()
+
+
+def test_the_default_face_is_called_default(face: Face) -> None:
+    assert face.name == "default"
+
+
+def test_the_default_face_is_exported_by_the_face_package(face: Face) -> None:
+    import realizer.face
+
+    assert realizer.face.load_default_face() is face

@@ -246,3 +246,44 @@ def test_the_head_carries_the_turned_eyes():
     assert np.allclose(both[eye], expected, atol=1e-6)
     skin = HEAD.part("skin")
     assert np.allclose(both[skin], head_only[skin], atol=1e-7)
+
+
+def test_the_head_pose_can_be_taken_apart_from_the_vertices():
+    from realizer.face.deform import rig_for
+
+    vector = fap_vector({3: 300.0, 23: 5000.0, 48: 4000.0, 49: -3000.0, 50: 1000.0})
+    local, pose = rig_for(HEAD).deform_posed(vector)
+    assert pose.shape == (4, 4)
+    assert np.allclose(pose[:3, :3] @ pose[:3, :3].T, np.eye(3))
+    posed = local.astype(np.float64) @ pose[:3, :3].T + pose[:3, 3]
+    assert np.allclose(posed, deform(HEAD, vector), atol=1e-6)
+    # without head FAPs the pose is the identity and the vertices are the result
+    no_head = vector.copy()
+    no_head[47:50] = 0.0
+    local, pose = rig_for(HEAD).deform_posed(no_head)
+    assert np.array_equal(pose, np.eye(4))
+    assert np.array_equal(local, deform(HEAD, no_head))
+
+
+def test_a_head_falloff_bends_the_neck_below_the_pivot():
+    from realizer.face.model import Face, FaceParameters, TransformDeformer
+
+    from .helpers import FAPU_POINTS
+
+    count = 60
+    vertices = np.zeros((count, 3), dtype=np.float32)
+    vertices[:, 0] = 0.01
+    vertices[:, 1] = (np.arange(count) - 30) * 0.001  # -30 mm .. +29 mm
+    yaw = TransformDeformer(49, ("all",), "rotation", (0.0, 1.0, 0.0), pivot=(0.0, 0.0, 0.0),
+                            falloff=0.02)
+    face = Face(vertices, np.zeros((0, 3), np.int32), {"skin": np.arange(count)},
+                FaceParameters(dict(FAPU_POINTS), (), (yaw,), {}))
+    out = deform(face, fap_vector({49: 10000.0})).astype(np.float64)  # 0.1 rad
+    rigid = np.array([0.01 * np.cos(0.1), 0.0, -0.01 * np.sin(0.1)])
+    offset = out - face.vertices
+    full = rigid - np.array([0.01, 0.0, 0.0])
+    y = face.vertices[:, 1]
+    assert offset[y >= 0][:, [0, 2]] == pytest.approx(np.tile(full[[0, 2]], (30, 1)), abs=1e-7)
+    assert not offset[y <= -0.0205].any()
+    halfway = int(np.argmin(np.abs(y + 0.010)))
+    assert offset[halfway] == pytest.approx(0.5 * full, abs=1e-7)

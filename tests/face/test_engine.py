@@ -187,3 +187,22 @@ def test_default_limits_come_from_the_fap_table_of_seed_002() -> None:
     closing = FapAnimation(facs_to_faps(["43"]), Envelope(0, 0, 1, 1))
     values, _ = mix([closing, closing], 0.5, limits)
     assert values[18] == 1080.0
+
+
+def test_planning_refuses_what_cannot_be_realized_with_a_timing_model_error() -> None:
+    from realizer.scheduler.timing import TimingModelError
+
+    found = behaviours('<faceLexeme id="a" lexeme="SMIRK"/><faceLexeme id="b" lexeme="OPEN_LIPS"/>')
+    with pytest.raises(TimingModelError, match="SMIRK"):
+        ENGINE.plan(found["a"])
+    model = ENGINE.plan(found["b"])
+    assert model.syncs == ("start", "attackPeak", "relax", "end") and len(model.phases) == 3
+
+
+def test_the_draft_gaze_names_its_offset_angle_and_direction() -> None:
+    draft = parse_bml(
+        '<bml id="d"><gaze id="g" target="x" angle="20" direction="LEFT" influence="EYES"/></bml>'
+    ).block.behaviours[0]
+    look = ENGINE.realize(draft, {"start": 0.0, "ready": 0.2, "relax": 1.0, "end": 1.2})
+    assert look is not None
+    assert mix([look], 0.5)[0][22] == pytest.approx(20 * math.pi / 180 * 1e5)

@@ -83,3 +83,14 @@ def test_negative_unidirectional_values_are_clamped_or_rejected():
     assert clamped[2] == 0.0 and clamped[3] == -100.0
     with pytest.raises(FapValueError, match="open_jaw"):
         check_fap_vector(vector)
+
+
+def test_the_package_exports_resolve():
+    import realizer.face as face_package
+    from realizer.face.faps import FAP_TABLE as TABLE
+
+    assert face_package.FAP_TABLE is TABLE
+    assert callable(face_package.rig_for) and callable(face_package.build_test_head)
+    assert face_package.Face.__name__ == "Face"
+    with pytest.raises(AttributeError):
+        face_package.no_such_name  # noqa: B018

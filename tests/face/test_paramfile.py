@@ -164,3 +164,22 @@ def test_entities_are_not_expanded():
 def test_a_missing_face_file_is_reported(tmp_path: Path):
     with pytest.raises(FaceFileError):
         load_face(tmp_path / "nothing")
+
+
+def test_a_one_element_name_array_is_read_as_the_name(tmp_path: Path):
+    head = build_test_head()
+    save_face(head, tmp_path / "head")
+    with np.load(tmp_path / "head.npz") as data:
+        arrays = {key: data[key] for key in data.files}
+    arrays["name"] = np.array(["someone"])
+    np.savez(tmp_path / "head.npz", **arrays)
+    assert load_face(tmp_path / "head").name == "someone"
+
+
+def test_the_default_face_parameter_file_round_trips():
+    default = pytest.importorskip("realizer.face.default")
+    path = default.default_face_path().with_suffix(".xml")
+    if not path.exists():
+        pytest.skip(f"no default face at {path}")
+    original = path.read_bytes()
+    assert c14n(serialise_parameters(parse_parameters(original))) == c14n(original)

@@ -62,8 +62,12 @@ def test_colours_draw_a_dark_pupil_at_the_front_of_each_eye(mesh_face: MeshFace)
         back = eyes[side][np.argmin(v[side, 2])]
         assert colours[front].sum() < 0.3  # pupil
         assert colours[back].sum() > 2.5  # sclera
-    skin = render.part_indices(mesh_face.parts["skin"])
+    mouth = render.part_indices(mesh_face.parts["mouth_inside"])
+    skin = np.setdiff1d(render.part_indices(mesh_face.parts["skin"]), mouth)
     np.testing.assert_allclose(colours[skin], np.tile(render.SKIN_RGB, (len(skin), 1)), atol=1e-6)
+    np.testing.assert_allclose(
+        colours[mouth], np.tile(render.MOUTH_RGB, (len(mouth), 1)), atol=1e-6
+    )
 
 
 def test_choose_platform_keeps_a_platform_the_user_set(monkeypatch: pytest.MonkeyPatch) -> None:

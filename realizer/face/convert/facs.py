@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
@@ -134,11 +134,15 @@ class FacsMapping:
 
     entries: tuple[tuple[AuKey, tuple[FapInfluence, ...]], ...]
     descriptions: tuple[tuple[AuKey, str], ...] = ()
+    _table: dict[AuKey, tuple[FapInfluence, ...]] = field(
+        init=False, repr=False, compare=False, hash=False
+    )
 
     def __post_init__(self) -> None:
         keys = [key for key, _ in self.entries]
         if len(set(keys)) != len(keys):
             raise ConversionError("an AU line with the same side appears twice")
+        object.__setattr__(self, "_table", dict(self.entries))  # lookups per request
 
     def action_units(self) -> tuple[int, ...]:
         """The AU numbers the mapping defines, ascending."""
@@ -147,8 +151,7 @@ class FacsMapping:
     def influences(self, au: int, side: str | None = None) -> tuple[FapInfluence, ...]:
         """The FAP lines that apply when ``au`` is requested on ``side`` (see module doc)."""
         sides: tuple[str | None, ...] = (None, "L", "R") if side is None else (None, side)
-        table = dict(self.entries)
-        found = [table[AuKey(au, s)] for s in sides if AuKey(au, s) in table]
+        found = [self._table[key] for s in sides if (key := AuKey(au, s)) in self._table]
         if not found:
             defined = "" if side is None else f" on side {side}"
             raise ConversionError(f"AU {au}{defined} is not in the FACS mapping")

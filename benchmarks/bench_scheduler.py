@@ -1,0 +1,176 @@
+"""Solve time of the scheduler against the number of behaviours in a block.
+
+Generated blocks repeat a unit of six behaviours that holds the three kinds
+of structure the scheduler has to handle (seed 000 section 3.3):
+
+* a cycle: three face lexemes tied start to end in a ring with a fixed
+  overall span of 4 s (seed 000 figure 3.7), which an in-order scheduler
+  cannot place and the QP solves by sharing the stretch;
+* chains: every unit's ring starts at the end of the previous unit, a nod's
+  stroke is tied to the ring's last relax, a beat gesture starts with the nod;
+* an active inequality: a second nod starts with the beat but must end at
+  least 0.5 s after the beat ends (``<after>``), which forces it to stretch,
+  so the active-set method has work to do.
+
+For 10, 100, 1,000 and 10,000 behaviours (``quick``: up to 1,000), and the
+same blocks without the ``<after>`` constraints (one KKT solve, no active
+set), it prints the time of :func:`realizer.scheduler.plan.schedule_block` (timing models,
+problem building, solving), the time of
+:func:`realizer.scheduler.solver.solve` alone on the prebuilt problem, the
+growth exponent fitted on log-log, and the 1,000-behaviour time against the
+goal of 20 ms. The primal active-set method adds one active constraint per
+iteration, each a fresh sparse factorisation, so with active inequalities
+the time grows much faster than linearly: a size whose projected time per
+call exceeds :data:`PROJECTED_LIMIT` is reported, not timed.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _timing import best_of
+
+from realizer.bml_parser import BML_NS, Block, parse_bml
+from realizer.scheduler.engines import EngineRegistry
+from realizer.scheduler.plan import _Builder, schedule_block
+from realizer.scheduler.solver import Problem, solve
+
+#: The goal for a block of 1,000 behaviours with cycles (seconds).
+GOAL = 0.020
+UNIT = 6
+
+
+def generated_block(behaviours: int, orderings: bool = True) -> bytes:
+    """A block of ``behaviours`` behaviours: rings, chains and (``orderings``) active <after>."""
+    lines = [f'<bml xmlns="{BML_NS}" id="bench">']
+    constraints = []
+    for i in range(behaviours):
+        unit, role = divmod(i, UNIT)
+        base = unit * UNIT
+        previous = f"b{base - 1}:end" if unit else "0"
+        if role == 0:  # the ring: a -> b -> c -> a + 4 s
+            lines.append(f'  <faceLexeme id="b{i}" lexeme="RAISE_BROWS" start="{previous}"/>')
+        elif role == 1:
+            lines.append(f'  <faceLexeme id="b{i}" lexeme="WIDEN_EYES" start="b{i - 1}:end"/>')
+        elif role == 2:
+            lines.append(
+                f'  <faceLexeme id="b{i}" lexeme="RAISE_MOUTH_CORNERS" start="b{i - 1}:end" '
+                f'end="b{base}:start+4"/>'
+            )
+        elif role == 3:  # chains
+            lines.append(f'  <head id="b{i}" lexeme="NOD" stroke="b{i - 1}:relax"/>')
+        elif role == 4:
+            lines.append(f'  <gesture id="b{i}" lexeme="BEAT" start="b{i - 1}:start"/>')
+        else:  # a short nod that must outlast the beat: an active <after>
+            lines.append(f'  <head id="b{i}" lexeme="NOD" start="b{i - 1}:start"/>')
+            if orderings:
+                constraints.append(
+                    f'  <constraint id="c{i}"><after ref="b{i - 1}:end+0.5">'
+                    f'<sync ref="b{i}:end"/></after></constraint>'
+                )
+    lines += constraints
+    lines.append("</bml>")
+    return "\n".join(lines).encode()
+
+
+def prebuilt_problem(block: Block, registry: EngineRegistry) -> Problem:
+    """The problem schedule_block hands to the solver (built as it builds it)."""
+    models = {b.id: registry.plan(b) for b in block.behaviours}
+    return _Builder(block, 0.0, models, {}, {}, []).build(set(), set())
+
+
+def check_active(block: Block, registry: EngineRegistry) -> int:
+    """How many of the <after> constraints hold with equality (are active)."""
+    plan = schedule_block(block, registry=registry)
+    active = 0
+    for constraint in block.constraints:
+        (relation,) = constraint.relations
+        (sync,) = relation.syncs
+        assert relation.ref is not None and relation.ref.behaviour and sync.behaviour
+        anchor = plan.time_of(relation.ref.behaviour, "end")
+        end = plan.time_of(sync.behaviour, "end")
+        assert anchor is not None and end is not None
+        active += abs(end - (anchor + relation.ref.offset)) < 1e-6
+    return active
+
+
+#: A size is timed only when the fit of the smaller ones projects one call
+#: under this many seconds, so that the default run stays near a minute.
+PROJECTED_LIMIT = 8.0
+
+
+def measure(
+    title: str, sizes: list[int], orderings: bool, registry: EngineRegistry, quick: bool
+) -> dict[int, tuple[float, float]]:
+    """Time schedule_block and solve per size; print a row each and the fitted growth."""
+    print(
+        f"{title}\n"
+        f"{'behaviours':>10} {'syncs':>7} {'active':>9} {'schedule_block':>15} {'solve':>11}"
+    )
+    timed: dict[int, tuple[float, float]] = {}
+    for size in sizes:
+        if len(timed) >= 2:
+            known = sorted(timed)
+            slope = math.log(timed[known[-1]][0] / timed[known[-2]][0]) / math.log(
+                known[-1] / known[-2]
+            )
+            projected = timed[known[-1]][0] * (size / known[-1]) ** max(slope, 1.0)
+            if projected > PROJECTED_LIMIT:
+                print(f"{size:>10,}  not timed: projected {projected:,.0f} s per call")
+                continue
+        block = parse_bml(generated_block(size, orderings)).block
+        problem = prebuilt_problem(block, registry)
+
+        def solve_it(problem: Problem = problem) -> None:
+            solve(problem)
+
+        def plan_it(block: Block = block) -> None:
+            schedule_block(block, registry=registry)
+
+        one = best_of(solve_it, repeats=1)
+        repeats = 1 if one > 0.5 else (3 if quick or one > 0.05 else 7)
+        t_solve = min(one, best_of(solve_it, repeats=repeats))
+        t_plan = best_of(plan_it, repeats=repeats)
+        active = check_active(block, registry)
+        timed[size] = (t_plan, t_solve)
+        print(
+            f"{size:>10,} {len(problem.keys):>7,} {active:>4}/{len(block.constraints):<4} "
+            f"{t_plan * 1e3:>12.2f} ms {t_solve * 1e3:>8.2f} ms"
+        )
+    known = sorted(timed)
+    logs = np.log(np.array(known, dtype=float))
+    for column, name in enumerate(("schedule_block", "solve")):
+        times = np.array([timed[size][column] for size in known])
+        slope = float(np.polyfit(logs, np.log(times), 1)[0])
+        # The last step says more about large blocks than the overall fit.
+        tail = math.log(times[-1] / times[-2]) / math.log(known[-1] / known[-2])
+        print(f"  growth exponent of {name}: {slope:.2f} (fit), {tail:.2f} (last two sizes)")
+    return timed
+
+
+def run(quick: bool = False) -> None:
+    registry = EngineRegistry.standard()
+    results = {}
+    for title, orderings, sizes in (
+        ("rings of 3 (4 s span) and chains, one <after> per 6 behaviours, all active",
+         True, [10, 100, 1000] if quick else [10, 100, 1000, 2000, 10000]),
+        ("the same rings and chains without the <after> constraints",
+         False, [10, 100, 1000] if quick else [10, 100, 1000, 10000]),
+    ):  # fmt: skip
+        results[orderings] = measure(title, sizes, orderings, registry, quick)
+    for orderings, label in ((True, "with active <after>"), (False, "without inequalities")):
+        t_plan, t_solve = results[orderings][1000]
+        print(
+            f"1,000 behaviours with cycles, {label}: schedule_block {t_plan * 1e3:.1f} ms, "
+            f"solve {t_solve * 1e3:.1f} ms; goal {GOAL * 1e3:.0f} ms, "
+            f"ratio schedule_block/goal {t_plan / GOAL:.2f}"
+        )
+
+
+if __name__ == "__main__":
+    run(quick="--quick" in sys.argv)
