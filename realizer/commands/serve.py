@@ -64,12 +64,11 @@ def _limits(pairs: list[str]) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    import asyncio
     import logging
 
     from realizer.errors import RealizerError
     from realizer.service.assets import face_assets, load_face, session_factory
-    from realizer.service.server import RealizerService, ServiceConfig, run_service
+    from realizer.service.server import RealizerService, ServiceConfig, serve_until_stopped
     from realizer.service.stage import Stage
 
     logging.basicConfig(level=logging.WARNING, format="realizer: %(message)s")
@@ -86,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         face = load_face(args.face)
         stage = Stage(session_factory(face), limits, default_character=args.character)
         assets = face_assets(face)
-    except (RealizerError, ValueError, OSError) as exc:
+    except (RealizerError, ValueError, OSError, ImportError) as exc:
         print(f"realizer serve: {exc}", file=sys.stderr)
         return 2
 
@@ -100,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        return asyncio.run(run_service(config, stage, assets, ready=ready))
+        return serve_until_stopped(config, stage, assets, ready=ready)
     except OSError as exc:  # e.g. the port is in use
         print(f"realizer serve: {exc}", file=sys.stderr)
         return 2

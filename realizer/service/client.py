@@ -20,6 +20,7 @@ package may import websockets (ARCHITECTURE.md decision 1), and
 
 from __future__ import annotations
 
+import inspect
 import json
 from collections.abc import Callable, Iterator
 from types import TracebackType
@@ -41,6 +42,20 @@ class ClientError(ServiceError):
     """The server refused or broke off the conversation."""
 
 
+def _open(uri: str) -> ClientConnection:
+    """A connected client; websockets >= 17.1 wants ``connect`` used as a
+    context manager (``legacy=False``), older releases return the
+    connection directly."""
+    options: dict[str, Any] = {"open_timeout": OPEN_TIMEOUT, "max_size": None}
+    options["compression"] = None
+    if "legacy" in inspect.signature(connect).parameters:
+        connecter: Any = connect(uri, legacy=False, **options)
+        connection: ClientConnection = connecter.__enter__()
+        return connection
+    direct: ClientConnection = connect(uri, **options)
+    return direct
+
+
 def _url(base: str, path: str, params: dict[str, str | None]) -> str:
     base = base.rstrip("/")
     if base.startswith("http://"):
@@ -56,9 +71,7 @@ class SubmitClient:
 
     def __init__(self, url: str, *, character: str | None = None, token: str | None = None) -> None:
         endpoint = _url(url, "/bml", {"format": "json", "character": character, "token": token})
-        self.connection: ClientConnection = connect(
-            endpoint, open_timeout=OPEN_TIMEOUT, max_size=None, compression=None
-        )
+        self.connection: ClientConnection = _open(endpoint)
         self.welcome: dict[str, Any] = self.receive(OPEN_TIMEOUT)
         if self.welcome.get("type") != "welcome":
             raise ClientError(f"expected a welcome message, got {self.welcome!r}")
@@ -143,9 +156,7 @@ class ViewClient:
             "vertices": vertices,
             "token": token,
         }
-        self.connection: ClientConnection = connect(
-            _url(url, "/view", params), open_timeout=OPEN_TIMEOUT, max_size=None, compression=None
-        )
+        self.connection: ClientConnection = _open(_url(url, "/view", params))
         self.mesh = self.receive(OPEN_TIMEOUT)
         if self.mesh.get("type") != "mesh":
             raise ClientError(f"expected the mesh first, got a {self.mesh.get('type')!r} message")

@@ -39,10 +39,12 @@ from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 import numpy.typing as npt
-from websockets.asyncio.server import Server, ServerConnection, serve
+from websockets.asyncio.server import Server, ServerConnection
+from websockets.asyncio.server import serve as websocket_serve
 from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
+from websockets.protocol import State
 
 from realizer import __version__
 from realizer.service import codec
@@ -70,6 +72,11 @@ from realizer.service.stage import (
 )
 
 logger = logging.getLogger("realizer.service")
+
+#: Bytes a connection's socket buffer may hold before sending waits (and a
+#: viewer's frames go to its one-frame mailbox instead): about a dozen
+#: vertex frames of the default face.
+WRITE_LIMIT = 256 * 1024
 
 SUBMIT_PATH = "/bml"
 VIEW_PATH = "/view"
@@ -120,13 +127,39 @@ class FaceAssets:
 
 @dataclass(slots=True)
 class ClockStats:
-    """What the frame clock did; read by /health and the benchmark."""
+    """What the frame clock did; read by /health and the benchmark.
 
+    ``started``: the clock's frame 0, in seconds of the host's monotonic
+    clock (``time.monotonic()``, shared by processes on one host), so a
+    local client can tell when frame n was due. Lateness is how long after
+    its due time a tick began; the recent values (last minute at 60 fps)
+    give the percentiles.
+    """
+
+    started: float = 0.0
     ticks: int = 0
     skipped: int = 0  # frames not computed because the clock was behind
     last_tick_seconds: float = 0.0  # work of the last tick
     max_tick_seconds: float = 0.0
-    max_lateness_seconds: float = 0.0  # tick start after its due time
+    max_lateness_seconds: float = 0.0
+    recent_lateness: deque[float] = field(default_factory=lambda: deque(maxlen=3600))
+
+    def summary(self) -> dict[str, float | int]:
+        recent = sorted(self.recent_lateness)
+
+        def share(q: float) -> float:
+            return recent[min(len(recent) - 1, int(q * len(recent)))] if recent else 0.0
+
+        return {
+            "started": self.started,
+            "ticks": self.ticks,
+            "skipped": self.skipped,
+            "last_tick_seconds": self.last_tick_seconds,
+            "max_tick_seconds": self.max_tick_seconds,
+            "max_lateness_seconds": self.max_lateness_seconds,
+            "lateness_p50_seconds": share(0.5),
+            "lateness_p99_seconds": share(0.99),
+        }
 
 
 @dataclass(eq=False, slots=True)
@@ -155,14 +188,36 @@ class Viewer:
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     offered: int = 0
     replaced: int = 0  # frames replaced before they were sent
+    direct: int = 0  # frames written at once, without the pump
+    idle: bool = False  # the pump waits for something to send
     closing: bool = False
 
-    def offer(self, frame: bytes) -> None:
-        """Put the newest frame in the mailbox, replacing an unsent one."""
+    def offer(self, frame: bytes, write_limit: int = 0) -> None:
+        """Send the newest frame, or put it in the mailbox (replacing an
+        unsent one) when the viewer's socket buffer holds ``write_limit``
+        bytes or more.
+
+        The fast path writes at once, as websockets' ``broadcast`` does, but
+        only while the pump is idle and the socket's buffer is under the
+        limit, so order and the memory bound are kept: a viewer that does not
+        read fills its buffer once, then only its mailbox is replaced.
+        """
+        self.offered += 1
+        connection = self.connection
+        if (
+            self.idle
+            and self.latest is None
+            and not self.control
+            and connection.protocol.state is State.OPEN
+            and connection.transport.get_write_buffer_size() < write_limit
+        ):
+            connection.protocol.send_binary(frame)
+            connection.send_data()
+            self.direct += 1
+            return
         if self.latest is not None:
             self.replaced += 1
         self.latest = frame
-        self.offered += 1
         self.wake.set()
 
 
@@ -202,7 +257,7 @@ class RealizerService:
     async def start(self) -> None:
         """Bind the port and start the clock."""
         loop = asyncio.get_running_loop()
-        self._server = await serve(
+        self._server = await websocket_serve(
             self._handle,
             self.config.host,
             self.config.port,
@@ -212,12 +267,14 @@ class RealizerService:
             # would cost CPU per viewer for little gain.
             compression=None,
             close_timeout=self.config.shutdown_timeout,
-            # Per-connection buffer before send() waits: about a dozen
-            # vertex frames of the default face, so a viewer that stops
-            # reading holds at most this much plus one mailbox frame.
-            write_limit=256 * 1024,
+            # Per-connection buffer before send() waits: a viewer that stops
+            # reading holds at most this much plus two frames (one written
+            # past the limit, one in its mailbox).
+            write_limit=WRITE_LIMIT,
         )
         self._start = loop.time()
+        # asyncio's loop clock is time.monotonic(); record frame 0 on it.
+        self.stats.started = self._start
         self._clock = loop.create_task(self._run_clock(), name="realizer-clock")
 
     async def shutdown(self, reason: str = "server shutting down") -> None:
@@ -278,6 +335,7 @@ class RealizerService:
                 self._frame += behind
             due = self._start + self._frame / fps
             self.stats.max_lateness_seconds = max(self.stats.max_lateness_seconds, begun - due)
+            self.stats.recent_lateness.append(begun - due)
             started = time.perf_counter()
             try:
                 self._tick(self._frame, self._frame / fps)
@@ -300,7 +358,7 @@ class RealizerService:
                 number, character_tick.time, character_tick.frame, (v.options for v in viewers)
             )
             for viewer in viewers:
-                viewer.offer(encoded[viewer.options])
+                viewer.offer(encoded[viewer.options], WRITE_LIMIT)
 
     def _encoder(self, character_id: str) -> FrameEncoder:
         encoder = self.encoders.get(character_id)
@@ -329,6 +387,8 @@ class RealizerService:
             return _json_response(
                 {"realizer": __version__, "protocol": PROTOCOL_VERSION, "fps": self.config.fps}
             )
+        if url.path == "/favicon.ico":
+            return _response(http.HTTPStatus.NO_CONTENT, b"")
         found = self._static.get(url.path)
         if found is not None:
             body, content_type = found
@@ -365,7 +425,7 @@ class RealizerService:
             "submitters": len(self.submitters),
             "frame": self._frame,
             "fps": self.config.fps,
-            "clock": asdict(self.stats),
+            "clock": self.stats.summary(),
         }
 
     async def _handle(self, connection: ServerConnection) -> None:
@@ -424,6 +484,19 @@ class RealizerService:
             pump.cancel()
 
     def _on_submit(self, submitter: Submitter, text: str) -> None:
+        try:
+            self._realize(submitter, text)
+        except Exception:
+            # A bug, not the peer's fault: log it, answer without details
+            # (they may be security-sensitive), keep the connection.
+            logger.exception("internal error on a submitted message")
+            xml = warning_feedback_xml(
+                "", submitter.default_character, "CANNOT_CREATE_BEHAVIOR", "internal error"
+            )
+            warning = WireFeedback(submitter.default_character, "warning", "", self.now(), xml)
+            self._dispatch([warning], also=submitter)
+
+    def _realize(self, submitter: Submitter, text: str) -> None:
         now = self.now()
         try:
             request = read_submitter_message(text)
@@ -557,7 +630,11 @@ class RealizerService:
                     data, viewer.latest = viewer.latest, None
                 else:
                     viewer.wake.clear()
-                    await viewer.wake.wait()
+                    viewer.idle = True
+                    try:
+                        await viewer.wake.wait()
+                    finally:
+                        viewer.idle = False
                     continue
                 await viewer.connection.send(data)
 
@@ -672,3 +749,15 @@ async def run_service(
             loop.remove_signal_handler(signum)
         await service.shutdown()
     return 0
+
+
+def serve_until_stopped(
+    config: ServiceConfig,
+    stage: Stage,
+    assets: FaceAssets,
+    *,
+    ready: Callable[[RealizerService], None] | None = None,
+) -> int:
+    """Run the service in a new event loop until SIGINT or SIGTERM; returns
+    the exit status (0). The blocking entry point of ``realizer serve``."""
+    return asyncio.run(run_service(config, stage, assets, ready=ready))

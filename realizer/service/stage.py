@@ -28,6 +28,7 @@ at all when the FAPs did not change.
 
 from __future__ import annotations
 
+import logging
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -42,6 +43,8 @@ from realizer.service import codec
 from realizer.service.errors import LimitExceeded, PeerError
 from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
 from realizer.service.messages import BlockState, DeltaPayload, ViewOptions, warning_feedback_xml
+
+logger = logging.getLogger("realizer.service")
 
 # -- what the stage needs from the session and the face (docs/interfaces.md) --
 
@@ -147,6 +150,7 @@ class Character:
 
 _ROOT_ID = re.compile(rb"<(?:\w+:)?bml\b[^>]*?\sid\s*=\s*[\"']([^\"']{0,200})[\"']")
 _FEEDBACK_ID = re.compile(r"\sid\s*=\s*[\"']([^\"']*)[\"']")
+_INTERRUPTED = re.compile(r"\sstatus\s*=\s*[\"']INTERRUPTED[\"']")
 
 
 def _guess_block_id(text: str) -> str:
@@ -262,10 +266,19 @@ class Stage:
             fb.block_id == block.id and fb.kind in ("prediction", "blockProgress")
             for fb in produced
         )
+        routed = self._route(found, produced)
         if accepted:
             found.open_blocks[block.id] = now
-            messages.append(BlockEvent(target, block.id, "accepted", now))
-        messages.extend(self._route(found, produced))
+            # "accepted" follows the block's prediction (or its first progress)
+            first = next(
+                i
+                for i, m in enumerate(routed)
+                if isinstance(m, WireFeedback)
+                and m.block_id == block.id
+                and m.kind in ("prediction", "blockProgress")
+            )
+            routed.insert(first + 1, BlockEvent(target, block.id, "accepted", now))
+        messages.extend(routed)
         if not accepted:
             messages.append(BlockEvent(target, block.id, "rejected", now))
         return SubmitResult(target, block.id, accepted, tuple(messages))
@@ -305,9 +318,16 @@ class Stage:
         now = self._advance(now)
         ticks: list[CharacterTick] = []
         for found in self.characters.values():
-            found.session.tick(now)
-            messages = self._route(found, found.session.take_feedback())
-            ticks.append(CharacterTick(found.id, now, found.session.frame(now), tuple(messages)))
+            try:
+                found.session.tick(now)
+                messages = self._route(found, found.session.take_feedback())
+                frame = found.session.frame(now)
+            except Exception:
+                # A failing session must not take every other character down
+                # with it: skip its frame this tick and say so in the log.
+                logger.exception("session of character %r failed at %.3f s", found.id, now)
+                continue
+            ticks.append(CharacterTick(found.id, now, frame, tuple(messages)))
         return ticks
 
     # -- helpers ----------------------------------------------------------------
@@ -318,7 +338,9 @@ class Stage:
             messages.append(WireFeedback(found.id, fb.kind, fb.block_id, fb.time, fb.xml))
             if _is_block_end(fb) and fb.block_id in found.open_blocks:
                 del found.open_blocks[fb.block_id]
-                state: BlockState = "interrupted" if fb.block_id in found.interrupting else "done"
+                # interrupted by us, or by the session (a REPLACE block)
+                interrupted = fb.block_id in found.interrupting or _INTERRUPTED.search(fb.xml)
+                state: BlockState = "interrupted" if interrupted else "done"
                 found.interrupting.discard(fb.block_id)
                 messages.append(BlockEvent(found.id, fb.block_id, state, fb.time))
         return messages

@@ -145,3 +145,83 @@ def test_a_viewer_mailbox_keeps_only_the_newest_frame() -> None:
     for frame in (b"1", b"2", b"3"):
         viewer.offer(frame)
     assert viewer.latest == b"3" and viewer.replaced == 2 and viewer.offered == 3
+
+
+def test_the_python_client_submits_views_and_decodes_vertex_deltas() -> None:
+    from realizer.client import SubmitClient, ViewClient
+    from tests.service.browser import service_in_thread
+
+    with service_in_thread(FakeSession, ASSETS) as service:
+        url = f"ws://127.0.0.1:{service.port}"
+        with (
+            ViewClient(url, character="Ann", vertices="int16") as view,
+            SubmitClient(url, character="Ann") as client,
+        ):
+            seen: list[dict[str, object]] = []
+            state = client.run_block(smile_bml("c1"), on_message=seen.append, timeout=5 * UNIT)
+            lifted = [
+                view.vertices(f)[0, 1]
+                for f in view.frames(count=int(120 * UNIT), timeout=5 * UNIT)
+                if view.faps(f)
+            ]
+            view.subscribe(character="Ben")
+            while view.receive(5 * UNIT)["type"] != "mesh":
+                pass
+    assert state == "done"
+    assert [m["state"] for m in seen if m["type"] == "block"] == ["accepted", "done"]
+    assert view.mesh["character"] == "Ben"
+    # FakeSession: FAP 12 = 100 lifts vertex 0 by 100 x 1e-5 m while a block runs
+    assert lifted and all(abs(y - 1e-3) <= codec.DELTA_STEP for y in lifted)
+
+
+class _Closing:
+    """Stands in for a connection: records the close it is asked for."""
+
+    def __init__(self) -> None:
+        self.closed: tuple[int, str] | None = None
+
+    async def close(self, code: int, reason: str) -> None:
+        self.closed = (code, reason)
+
+
+def test_a_submitter_over_its_feedback_backlog_is_closed_with_1008() -> None:
+    from realizer.service.server import RealizerService, Submitter
+    from realizer.service.stage import Stage
+
+    async def scenario() -> _Closing:
+        limits = ServiceLimits(feedback_backlog=3)
+        service = RealizerService(
+            ServiceConfig(port=0, limits=limits), Stage(FakeSession, limits), ASSETS
+        )
+        connection = _Closing()
+        submitter = Submitter(connection, "xml", "default")  # type: ignore[arg-type]
+        for n in range(5):
+            service._push(submitter, f"<feedback n='{n}'/>")
+        await asyncio.sleep(0)
+        assert submitter.closing and not submitter.outbox
+        return connection
+
+    connection = asyncio.run(scenario())
+    assert connection.closed is not None and connection.closed[0] == 1008
+    assert "backlog over 3" in connection.closed[1]
+
+
+def test_a_viewer_flooding_subscribes_is_closed_with_1008() -> None:
+    from realizer.service.server import RealizerService
+    from realizer.service.stage import Stage
+
+    async def scenario() -> _Closing:
+        limits = ServiceLimits(subscribe_backlog=2)
+        service = RealizerService(
+            ServiceConfig(port=0, limits=limits), Stage(FakeSession, limits), ASSETS
+        )
+        connection = _Closing()
+        viewer = Viewer(connection, "a", None)  # type: ignore[arg-type]
+        for _ in range(3):
+            service._control(viewer, b"mesh")
+        await asyncio.sleep(0)
+        assert viewer.closing and len(viewer.control) == 2
+        return connection
+
+    connection = asyncio.run(scenario())
+    assert connection.closed == (1008, "too many subscribe requests")

@@ -7,6 +7,7 @@ rules are checked without sockets and without the scheduler's timings.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from realizer.service import codec
 from realizer.service.limits import ServiceLimits
@@ -144,3 +145,18 @@ def test_frames_are_encoded_once_per_kind_of_viewer_and_deformed_only_on_change(
     assert frame["n"] == 6 and "fap" not in frame
     assert np.isclose(vertices[0, 1], 100 * 1e-5, atol=codec.DELTA_STEP)
     assert codec.decode_faps(codec.unpack(first[ViewOptions()])["fap"]) == {12: 100.0}
+
+
+def test_a_failing_session_does_not_stop_the_other_characters(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    class Broken(FakeSession):
+        def tick(self, now: float) -> None:
+            raise RuntimeError("a bug")
+
+    stage = Stage(lambda c: Broken(c) if c == "bad" else FakeSession(c))
+    stage.submit_bml(smile_bml("a", character="bad"), 0.0)
+    stage.submit_bml(smile_bml("b", character="good"), 0.0)
+    ticks = stage.tick(0.1)
+    assert [t.character for t in ticks] == ["good"]
+    assert "character 'bad' failed" in caplog.text
