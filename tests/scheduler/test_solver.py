@@ -465,3 +465,87 @@ def test_a_ring_of_ties_that_does_not_close_is_a_conflict() -> None:
     with pytest.raises(Infeasible) as caught:
         solve(problem)
     assert {s.id for s in caught.value.conflict} == {"x", "y", "z"}
+
+
+def closed_form(problem: Problem) -> dict[tuple[str, str], float]:
+    """The equality-constrained optimum from one dense KKT system (numpy, no bounds)."""
+    keys = list(problem.keys)
+    index = {k: i for i, k in enumerate(keys)}
+    n = len(keys)
+    hessian = np.zeros((n, n))
+    linear = np.zeros(n)
+    for a, b, phase, _ in problem.phases:
+        i, j = index[b], index[a]
+        hessian[i, i] += 2 * phase.weight
+        hessian[j, j] += 2 * phase.weight
+        hessian[i, j] -= 2 * phase.weight
+        hessian[j, i] -= 2 * phase.weight
+        linear[i] -= 2 * phase.weight * phase.preferred
+        linear[j] += 2 * phase.weight * phase.preferred
+    rows = []
+    rhs = []
+    for r in problem.equalities:
+        row = np.zeros(n)
+        row[index[r.a]] += 1
+        row[index[r.b]] -= 1
+        rows.append(row)
+        rhs.append(r.kb - r.ka)
+    row = np.zeros(n)
+    row[index[BLOCK_START]] = 1
+    rows.append(row)
+    rhs.append(0.0)
+    tie = np.array(rows)
+    kkt = np.block([[hessian, tie.T], [tie, np.zeros((len(rows), len(rows)))]])
+    # Cycles of ties repeat rows: least squares gives the consistent solution.
+    solution = np.linalg.lstsq(kkt, np.concatenate([-linear, rhs]), rcond=None)[0]
+    return {key: float(solution[index[key]]) for key in keys}
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_equality_only_problems_equal_the_closed_form_to_1e_9(seed: int) -> None:
+    # Every behaviour is tied to a fixed time (so no start-early pull acts)
+    # and ties roughly agree with the preferred lengths (so no bound is
+    # active): the optimum is the closed form of the equality-constrained QP.
+    rng = np.random.default_rng(500 + seed)
+    problem = Problem()
+    syncs = ("start", "ready", "stroke", "end")
+    count = int(rng.integers(3, 9))
+    natural: dict[tuple[str, str], float] = {}  # each sync's time at preferred lengths
+    for i in range(count):
+        lengths = [float(x) for x in rng.uniform(0.5, 2.0, 3)]
+        start = float(rng.uniform(5.0, 8.0))
+        for sync, offset in zip(syncs, np.concatenate([[0.0], np.cumsum(lengths)]), strict=True):
+            natural[(f"b{i}", sync)] = start + float(offset)
+        problem.add_behaviour(
+            f"b{i}", syncs, [Phase(p, float(rng.uniform(0.2, 5.0))) for p in lengths], src(f"b{i}")
+        )
+        problem.fix((f"b{i}", "start"), start, src(f"b{i}"))
+    # Ties that nearly hold at the natural times. Cycles through phases are
+    # plenty (every behaviour is fixed); a cycle of ties alone would only
+    # close by chance, so a tie inside one class of tied points is skipped.
+    tied: dict[tuple[str, str], tuple[str, str]] = {}
+
+    def root(key: tuple[str, str]) -> tuple[str, str]:
+        while tied.get(key, key) != key:
+            key = tied[key]
+        return key
+
+    for i in range(count):
+        tied[(f"b{i}", "start")] = BLOCK_START
+    for _ in range(2 * count):
+        a, b = rng.choice(count, 2, replace=False)
+        sa, sb = (syncs[int(k)] for k in rng.integers(1, 4, 2))
+        ka, kb = root((f"b{a}", sa)), root((f"b{b}", sb))
+        if ka == kb:
+            continue
+        tied[ka] = kb
+        offset = natural[(f"b{b}", sb)] - natural[(f"b{a}", sa)] + float(rng.uniform(-0.2, 0.2))
+        problem.equal((f"b{a}", sa), offset, (f"b{b}", sb), 0.0, src(f"b{a}"))
+    expected = closed_form(problem)
+    durations_expected = durations(expected, problem)
+    if durations_expected.min() <= 0.01 or min(expected.values()) < -1e-12:
+        pytest.skip("a bound would be active; the closed form does not apply")
+    ours = solve(problem)
+    np.testing.assert_allclose(durations(ours, problem), durations_expected, rtol=0, atol=1e-9)
+    for key, time in expected.items():
+        assert ours[key] == pytest.approx(time, abs=1e-9)
