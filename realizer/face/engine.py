@@ -53,7 +53,7 @@ import math
 import re
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
 
@@ -139,6 +139,17 @@ def _phase(entry: Mapping[str, float]) -> Phase:
     )
 
 
+@lru_cache(maxsize=16)
+def _phase_table(name: str) -> tuple[Phase, ...]:
+    """The phases of one entry of engine.toml's [timing], read once."""
+    return tuple(_phase(p) for p in load_engine_data()["timing"][name]["phases"])
+
+
+@lru_cache(maxsize=1)
+def _head_repeat() -> Phase:
+    return _phase(load_engine_data()["timing"]["head"]["repeat"])
+
+
 def _strokes(syncs: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(s for s in syncs if s == "stroke" or s.startswith("stroke:"))
 
@@ -214,6 +225,11 @@ class FaceEngine:
     visemes: ShapeTable
     expressions: ShapeTable
     limits: FapLimits
+    #: (type, params) of behaviours already validated: planning a block
+    #: checks each lexeme once, not once per behaviour
+    _valid: set[tuple[str, tuple[tuple[str, str], ...]]] = field(
+        default_factory=set, compare=False, repr=False
+    )
 
     @classmethod
     def default(cls, limits: FapLimits | None = None) -> FaceEngine:
@@ -233,29 +249,28 @@ class FaceEngine:
 
     def timing(self, behaviour: Behaviour) -> TimingModel:
         """Sync points and phase preferences (seconds) of a handled behaviour."""
-        data = load_engine_data()["timing"]
         syncs = tuple(behaviour.syncs)
         kind = behaviour.type
+        table: tuple[Phase, ...]
         if kind in ("faceShift", "gazeShift"):
-            table = [_phase(p) for p in data["shift"]["phases"]]
+            table = _phase_table("shift")
         elif kind == "viseme":
-            table = [_phase(p) for p in data["viseme"]["phases"]]
+            table = _phase_table("viseme")
         elif kind in FACE_TYPES:
-            table = [_phase(p) for p in data["face"]["phases"]]
+            table = _phase_table("face")
         elif kind == "gaze":
-            table = [_phase(p) for p in data["gaze"]["phases"]]
+            table = _phase_table("gaze")
         elif kind == "head":
-            base = [_phase(p) for p in data["head"]["phases"]]
-            repeat = _phase(data["head"]["repeat"])
+            base = _phase_table("head")
             extra = max(0, len(_strokes(syncs)) - 1)
-            table = base[:3] + [repeat] * extra + base[3:]
+            table = base[:3] + (_head_repeat(),) * extra + base[3:]
         else:
             raise ConversionError(f"the face engine does not handle {kind!r}")
         if len(table) != len(syncs) - 1:
             raise ConversionError(
                 f"{kind} {behaviour.id!r}: {len(syncs)} sync points but {len(table)} timing phases"
             )
-        return TimingModel(syncs, tuple(table))
+        return TimingModel(syncs, table)
 
     def plan(self, behaviour: Behaviour) -> TimingModel:
         """The scheduler's TimingModel for the behaviour (docs/interfaces.md).
@@ -275,12 +290,16 @@ class FaceEngine:
 
     def validate(self, behaviour: Behaviour) -> None:
         """Raise ConversionError if the behaviour's parameters cannot be realized."""
+        key = (behaviour.type, behaviour.params)
+        if key in self._valid:
+            return
         if behaviour.type in FACE_TYPES:
             self.configuration(behaviour)
         elif behaviour.type in GAZE_TYPES:
             self._gaze(behaviour)
         elif behaviour.type == "head":
             self._head_lexeme(behaviour)
+        self._valid.add(key)
 
     def configuration(self, behaviour: Behaviour) -> FapConfiguration:
         """The FAP values at full level of a face behaviour (not head or gaze)."""

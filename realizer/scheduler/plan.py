@@ -131,7 +131,7 @@ class _Builder:
             if key not in self.external:
                 self.warn(
                     WarningType.NO_SUCH_TARGET,
-                    f"{holder}: {ref.raw.strip()!r} names no sync point of a running block",
+                    f"{holder}: {ref.raw.strip()!r} names no sync point of an earlier block",
                     holder,
                 )
                 return None
@@ -265,7 +265,6 @@ def schedule_block(
     builder = _Builder(block, start, models, external or {}, fixed or {}, notes)
     skip: set[str] = set()
     dropped_constraints: set[Source] = set()
-    required = {b.id for b in block.behaviours if b.required}
     while True:
         mark = len(notes)
         problem = builder.build(skip, dropped_constraints)
@@ -306,7 +305,6 @@ def schedule_block(
                         id=f"{block.id}:{victim.id}",
                     )
                 )
-    del required
     behaviours = []
     for behaviour in block.behaviours:
         if behaviour.id in skip or behaviour.id not in models:
@@ -314,7 +312,9 @@ def schedule_block(
         model = models[behaviour.id]
         behaviours.append(
             ScheduledBehaviour(
-                behaviour, {sync: start + times[(behaviour.id, sync)] for sync in model.syncs}
+                # max(0, t): the solver's round-off may leave -1e-18 at the block start
+                behaviour,
+                {sync: start + max(0.0, times[(behaviour.id, sync)]) for sync in model.syncs},
             )
         )
     end = max((b.end for b in behaviours), default=start)
