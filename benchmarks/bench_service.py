@@ -46,9 +46,8 @@ import subprocess
 import sys
 import time
 import urllib.request
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import msgpack
 import psutil
@@ -64,14 +63,17 @@ PROBE = (
 )
 
 
-@dataclass
+# Plain classes, not dataclasses: `realizer bench` loads this file without
+# registering it in sys.modules, which dataclasses need for string annotations.
 class ViewerLog:
-    character: str
-    receipts: list[tuple[int, float, bool]] = field(default_factory=list)  # n, time, any FAP
+    """One viewer's receipts: (frame number, arrival time, any FAP set)."""
+
+    def __init__(self, character: str) -> None:
+        self.character = character
+        self.receipts: list[tuple[int, float, bool]] = []
 
 
-@dataclass
-class Result:
+class Result(NamedTuple):
     characters: int
     viewers: int
     seconds: float

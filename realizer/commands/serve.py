@@ -83,7 +83,11 @@ def run(args: argparse.Namespace) -> int:
             limits=limits,
         )
         face = load_face(args.face)
-        stage = Stage(session_factory(face), limits, default_character=args.character)
+        make_session = session_factory(face)
+        # The first session loads the engines' data (tens of ms): do it now,
+        # not on the clock's time when the first character appears.
+        make_session(args.character)
+        stage = Stage(make_session, limits, default_character=args.character)
         assets = face_assets(face)
     except (RealizerError, ValueError, OSError, ImportError) as exc:
         print(f"realizer serve: {exc}", file=sys.stderr)

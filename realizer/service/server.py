@@ -211,8 +211,11 @@ class Viewer:
             and connection.protocol.state is State.OPEN
             and connection.transport.get_write_buffer_size() < write_limit
         ):
-            connection.protocol.send_binary(frame)
-            connection.send_data()
+            try:
+                connection.protocol.send_binary(frame)
+                connection.send_data()
+            except Exception:  # the connection broke: its pump will see it close
+                return
             self.direct += 1
             return
         if self.latest is not None:
