@@ -24,6 +24,7 @@ blocks already planned (``bml1:nod1:end``); they are fixed times for it.
 from __future__ import annotations
 
 import enum
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -94,7 +95,7 @@ class _Record:
     plan: TimedPlan
     lifecycle: BlockLifecycle
     # (global time, order, kind, behaviour id, sync) still to report
-    events: list[tuple[float, int, str, str, str]]
+    events: deque[tuple[float, int, str, str, str]]
     animations: list[Any] = field(default_factory=list)
 
 
@@ -105,6 +106,10 @@ class SessionLimits:
     parse: Limits = field(default_factory=Limits)
     #: interrupted animations ease out over this many seconds
     release: float = 0.2
+    #: finished (done, interrupted, failed) blocks remembered for state
+    #: queries and cross-block references; older ones are forgotten so that
+    #: a long-running session stays as fast as a new one
+    finished_kept: int = 64
 
 
 class Session:
@@ -200,7 +205,7 @@ class Session:
                                    self.character_id))  # fmt: skip
             lifecycle.handle(BlockEvent.FAIL)
             self._blocks[block.id] = _Record(
-                TimedPlan(block, start, start, ()), lifecycle, events=[]
+                TimedPlan(block, start, start, ()), lifecycle, events=deque()
             )
             return None
         for note in plan.warnings:
@@ -229,7 +234,7 @@ class Session:
             animation = self.registry.realize(scheduled.behaviour, scheduled.times)
             if animation is not None:
                 animations.append(animation)
-        self._blocks[block.id] = _Record(plan, lifecycle, events, animations)
+        self._blocks[block.id] = _Record(plan, lifecycle, deque(events), animations)
         self._progress(now)
         return plan
 
@@ -269,6 +274,7 @@ class Session:
         """Advance to ``now``: progress feedback for every sync point passed."""
         self._advance(now)
         self._progress(now)
+        self._forget(now)
 
     # -- output ------------------------------------------------------------
 
@@ -300,11 +306,28 @@ class Session:
     def _emit(self, feedback: Feedback) -> None:
         self._feedback.append(feedback)
 
+    def _forget(self, now: float) -> None:
+        """Drop animations that have ended and the oldest finished blocks."""
+        finished = []
+        for block_id, record in self._blocks.items():
+            if record.lifecycle.state in ACTIVE:
+                continue
+            if record.animations:
+                record.animations = [a for a in record.animations if a.end >= now]
+            finished.append(block_id)
+        excess = len(finished) - self.limits.finished_kept
+        for block_id in finished:
+            if excess <= 0:
+                break
+            if not self._blocks[block_id].animations:
+                del self._blocks[block_id]
+                excess -= 1
+
     def _progress(self, now: float) -> None:
         due: list[tuple[float, int, str, str, str, str]] = []
         for block_id, record in self._blocks.items():
             while record.events and record.events[0][0] <= now + 1e-12:
-                time, order, kind, behaviour_id, sync = record.events.pop(0)
+                time, order, kind, behaviour_id, sync = record.events.popleft()
                 due.append((time, order, block_id, kind, behaviour_id, sync))
         due.sort()
         for time, _, block_id, kind, behaviour_id, sync in due:

@@ -15,6 +15,7 @@ from realizer.session import (
     BlockState,
     LifecycleError,
     Session,
+    SessionLimits,
 )
 from tests.conftest import EXAMPLES
 
@@ -236,3 +237,21 @@ def test_an_interrupted_smile_eases_out() -> None:
     session.interrupt("smile", now=1.0)
     assert session.frame(1.05).values[58] > 0
     assert not session.frame(1.5).mask.any()
+
+
+def test_a_long_running_session_forgets_old_finished_blocks() -> None:
+    session = Session(limits=SessionLimits(finished_kept=8))
+    now = 0.0
+    for index in range(40):
+        session.receive_bml(bml(f"b{index}", NOD), now=now)
+        now += 1.5
+        session.tick(now)
+    session.take_feedback()
+    remembered = [f"b{i}" for i in range(40) if session.state(f"b{i}") is not None]
+    assert len(remembered) <= 9
+    assert session.state("b39") is BlockState.DONE and session.state("b0") is None
+    # the recent ones can still be referred to
+    plan = session.receive_bml(bml("late", '<head id="n" lexeme="NOD" start="b39:nod1:end+100"/>'),
+                               now=now)  # fmt: skip
+    assert plan is not None and not plan.warnings
+    assert not session.frame(now + 50).mask.any()  # ended animations no longer mix
