@@ -64,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
     except TimeoutError:
         print(f"realizer send: no message for {args.timeout} s", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # the reader of our output went away (`| head`)
+        raise
     except Exception as exc:  # connection refused, handshake refused, closed
         print(f"realizer send: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
