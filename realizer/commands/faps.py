@@ -92,20 +92,26 @@ def record_block(text: str | bytes, fps: float, max_seconds: float) -> BlockReco
     )
 
 
-def run(args: Any) -> int:
+def recording_for(args: Any, command: str) -> BlockRecording | None:
+    """Record ``args.file`` for ``realizer COMMAND``; report problems on stderr."""
     from realizer.errors import RealizerError
-    from realizer.face.fapfile import FapFile, write_fap_file
 
     try:
         recording = record_block(args.file.read_bytes(), args.fps, args.max_seconds)
-    except ImportError as error:  # no realizer.session in this checkout
-        print(f"realizer faps: error: no realizer session available: {error}", file=sys.stderr)
-        return 2
     except (OSError, ValueError, RealizerError) as error:
-        print(f"realizer faps: error: {args.file}: {error}", file=sys.stderr)
-        return 2
+        print(f"realizer {command}: error: {args.file}: {error}", file=sys.stderr)
+        return None
     for warning in recording.warnings:
-        print(f"realizer faps: warning: {warning}", file=sys.stderr)
+        print(f"realizer {command}: warning: {warning}", file=sys.stderr)
+    return recording
+
+
+def run(args: Any) -> int:
+    from realizer.face.fapfile import FapFile, write_fap_file
+
+    recording = recording_for(args, "faps")
+    if recording is None:
+        return 2
     write_fap_file(args.output, FapFile(args.file.stem, args.fps, recording.values, recording.mask))
     print(f"{args.output}: {len(recording.times)} frames at {args.fps:g} fps")
     return 0

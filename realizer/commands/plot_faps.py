@@ -7,7 +7,6 @@ with a dashed line at each sync point the session reported
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -27,20 +26,12 @@ def register(subparsers: Any) -> None:
 
 def run(args: Any) -> int:
     from realizer.commands.facs import fap_names
-    from realizer.commands.faps import record_block
-    from realizer.errors import RealizerError
+    from realizer.commands.faps import recording_for
     from realizer.face.plotting import plot_fap_tracks
 
-    try:
-        recording = record_block(args.file.read_bytes(), args.fps, args.max_seconds)
-    except ImportError as error:  # no realizer.session in this checkout
-        print(f"realizer plot-faps: error: no realizer session available: {error}", file=sys.stderr)
+    recording = recording_for(args, "plot-faps")
+    if recording is None:
         return 2
-    except (OSError, ValueError, RealizerError) as error:
-        print(f"realizer plot-faps: error: {args.file}: {error}", file=sys.stderr)
-        return 2
-    for warning in recording.warnings:
-        print(f"realizer plot-faps: warning: {warning}", file=sys.stderr)
     drawn = plot_fap_tracks(
         recording.times,
         recording.values,
