@@ -24,7 +24,7 @@ import inspect
 import json
 from collections.abc import Callable, Iterator
 from types import TracebackType
-from typing import Any
+from typing import Any, Self
 from urllib.parse import urlencode
 
 import numpy as np
@@ -66,17 +66,12 @@ def _url(base: str, path: str, params: dict[str, str | None]) -> str:
     return f"{base}{path}?{query}" if query else f"{base}{path}"
 
 
-class SubmitClient:
-    """The submitter endpoint in JSON mode: send BML, read feedback."""
+class _Connected:
+    """A client holding one WebSocket connection; use it in a ``with`` block."""
 
-    def __init__(self, url: str, *, character: str | None = None, token: str | None = None) -> None:
-        endpoint = _url(url, "/bml", {"format": "json", "character": character, "token": token})
-        self.connection: ClientConnection = _open(endpoint)
-        self.welcome: dict[str, Any] = self.receive(OPEN_TIMEOUT)
-        if self.welcome.get("type") != "welcome":
-            raise ClientError(f"expected a welcome message, got {self.welcome!r}")
+    connection: ClientConnection
 
-    def __enter__(self) -> SubmitClient:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(
@@ -86,6 +81,17 @@ class SubmitClient:
 
     def close(self) -> None:
         self.connection.close()
+
+
+class SubmitClient(_Connected):
+    """The submitter endpoint in JSON mode: send BML, read feedback."""
+
+    def __init__(self, url: str, *, character: str | None = None, token: str | None = None) -> None:
+        endpoint = _url(url, "/bml", {"format": "json", "character": character, "token": token})
+        self.connection: ClientConnection = _open(endpoint)
+        self.welcome: dict[str, Any] = self.receive(OPEN_TIMEOUT)
+        if self.welcome.get("type") != "welcome":
+            raise ClientError(f"expected a welcome message, got {self.welcome!r}")
 
     def submit(self, bml: str, *, character: str | None = None) -> None:
         """Send one BML document (in a JSON envelope)."""
@@ -138,7 +144,7 @@ class SubmitClient:
                 return str(message["state"])
 
 
-class ViewClient:
+class ViewClient(_Connected):
     """The viewer endpoint: the mesh, then decoded frames."""
 
     def __init__(
@@ -160,17 +166,6 @@ class ViewClient:
         self.mesh = self.receive(OPEN_TIMEOUT)
         if self.mesh.get("type") != "mesh":
             raise ClientError(f"expected the mesh first, got a {self.mesh.get('type')!r} message")
-
-    def __enter__(self) -> ViewClient:
-        return self
-
-    def __exit__(
-        self, kind: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
-
-    def close(self) -> None:
-        self.connection.close()
 
     def receive(self, timeout: float | None = None) -> dict[str, Any]:
         data = self.connection.recv(timeout)
