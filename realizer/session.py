@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from realizer.bml_parser import BmlError, Limits, WarningType, parse_bml
+from realizer.bml_parser import BmlError, Limits, ParseResult, WarningType, parse_bml
 from realizer.errors import RealizerError
 from realizer.feedback import (
     Feedback,
@@ -148,8 +148,11 @@ class Session:
 
     # -- input -------------------------------------------------------------
 
-    def receive_bml(self, text: str | bytes, now: float) -> TimedPlan | None:
+    def receive_bml(self, text: str | bytes | ParseResult, now: float) -> TimedPlan | None:
         """Parse, plan and schedule a block arriving at ``now``.
+
+        ``text`` may also be a :class:`ParseResult` the caller already has
+        (the service parses once to route a block to its character).
 
         Feedback (warnings, then the prediction) is queued; returns the plan,
         or None when the block was refused (a warningFeedback says why).
@@ -160,7 +163,11 @@ class Session:
         # ended meanwhile is done before a REPLACE or APPEND looks at it).
         self._progress(now)
         try:
-            result = parse_bml(text, source=f"bml@{now:.3f}", limits=self.limits.parse)
+            result = (
+                text
+                if isinstance(text, ParseResult)
+                else parse_bml(text, source=f"bml@{now:.3f}", limits=self.limits.parse)
+            )
         except BmlError as exc:
             self._emit(warning("", "", str(exc.warning_type),
                                f"{exc.line}:{exc.column}: {exc.message}", now,

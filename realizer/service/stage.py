@@ -68,7 +68,7 @@ class FrameLike(Protocol):
 
 
 class SessionLike(Protocol):
-    def receive_bml(self, text: str, now: float) -> Any: ...
+    def receive_bml(self, text: Any, now: float) -> Any: ...
     def interrupt(self, block_id: str, now: float) -> Any: ...
     def tick(self, now: float) -> Any: ...
     def take_feedback(self) -> list[Any]: ...
@@ -255,7 +255,7 @@ class Stage:
             )
         messages: list[Outgoing] = []
         try:
-            found.session.receive_bml(text, now)
+            found.session.receive_bml(parsed, now)  # parsed once, here
         except RealizerError as exc:
             # The contract says sessions queue warnings; a session that raises
             # is answered the same way, and the service keeps going.

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from realizer.bml_parser import parse_bml
+from realizer.bml_parser import ParseResult, parse_bml
 from realizer.face.frame import FapFrame
 
 
@@ -35,9 +35,9 @@ class FakeSession:
         self.started: set[str] = set()
         self.feedback: list[FakeFeedback] = []
 
-    def receive_bml(self, text: str, now: float) -> None:
+    def receive_bml(self, text: str | ParseResult, now: float) -> None:
         self.calls.append(("receive_bml", now))
-        block = parse_bml(text).block
+        block = (text if isinstance(text, ParseResult) else parse_bml(text)).block
         self.running[block.id] = (now, now + self.duration)
         self.feedback.append(
             FakeFeedback("prediction", block.id, now, f'<predictionFeedback id="{block.id}"/>')
