@@ -261,25 +261,20 @@ def _deformer_attributes(setting: DeformerSetting) -> dict[str, str]:
             attrs["part"] = setting.part
         if setting.feature_point:
             attrs["fp"] = setting.feature_point
-    elif isinstance(setting, TransformDeformer):
-        attrs["parts"] = " ".join(setting.parts)
-        attrs["type"] = setting.kind
+    elif isinstance(setting, TransformDeformer | DilateDeformer | RollDeformer):
+        if isinstance(setting, TransformDeformer):
+            attrs["parts"] = " ".join(setting.parts)
+            attrs["type"] = setting.kind
+        else:
+            attrs["part"] = setting.part
         vec(setting.axis)
         attrs["scale"] = _fmt(setting.scale)
         if setting.pivot is not None:
             vec(setting.pivot, "pivot-")
         if setting.pivot_fp:
             attrs["pivot-fp"] = setting.pivot_fp
-        if setting.falloff:
+        if isinstance(setting, TransformDeformer) and setting.falloff:
             attrs["falloff"] = _fmt(setting.falloff)
-    elif isinstance(setting, DilateDeformer | RollDeformer):
-        attrs["part"] = setting.part
-        vec(setting.axis)
-        attrs["scale"] = _fmt(setting.scale)
-        if setting.pivot is not None:
-            vec(setting.pivot, "pivot-")
-        if setting.pivot_fp:
-            attrs["pivot-fp"] = setting.pivot_fp
     elif isinstance(setting, FaceDefMesh):
         attrs["target"] = setting.target
         attrs["intervals"] = " ".join(_fmt(b) for b in setting.intervals)
