@@ -164,15 +164,11 @@ class _Builder:
         problem = Problem()
         block = self.block
         for behaviour in block.behaviours:
-            if behaviour.id in skip or behaviour.id not in self.models:
+            model = self.models.get(behaviour.id)
+            if model is None or behaviour.id in skip:
                 continue
-            model = self.models[behaviour.id]
             source = self._source("behaviour", behaviour.id, behaviour.required)
             problem.add_behaviour(behaviour.id, model.syncs, model.phases, source)
-        for behaviour in block.behaviours:
-            if behaviour.id in skip or behaviour.id not in self.models:
-                continue
-            source = self._source("behaviour", behaviour.id, behaviour.required)
             refs = list(behaviour.sync_refs)
             if behaviour.speech is not None:
                 refs += [(r.id, r.ref) for r in behaviour.speech.runs
