@@ -16,8 +16,9 @@ The face engine (realizer.face.engine) refines face, head and gaze.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any, Protocol
 
 import numpy as np
@@ -60,6 +61,30 @@ _HOLD_PHASES = (0.5, 1.5, 0.5)
 _REPEAT = 0.5  # between repeated strokes
 
 
+@lru_cache(maxsize=256)
+def _plain_model(syncs: tuple[str, ...]) -> TimingModel:
+    """The default model of a behaviour with these sync points (models are immutable)."""
+    if len(syncs) == 2:
+        return TimingModel(syncs, (Phase(1.0),))
+    if syncs[1] == "attackPeak":
+        return TimingModel(syncs, tuple(Phase(p) for p in _FACE_PHASES))
+    if syncs[1] == "ready" and len(syncs) == 4:
+        # gaze, posture, locomotion: the hold between ready and relax lasts
+        # as long as it is asked to.
+        weights = (1.0, 0.05, 1.0)
+        return TimingModel(
+            syncs, tuple(Phase(p, w) for p, w in zip(_HOLD_PHASES, weights, strict=True))
+        )
+    phases = []
+    for before, after in itertools.pairwise(syncs):
+        if after.startswith("stroke:"):
+            preferred = _REPEAT
+        else:
+            preferred = _GESTURE_PHASES.get((before.partition(":")[0], after), 0.3)
+        phases.append(Phase(preferred))
+    return TimingModel(syncs, tuple(phases))
+
+
 @dataclass(frozen=True, slots=True)
 class DefaultEngine:
     """Plain timing models for every behaviour type; realizes nothing."""
@@ -74,34 +99,11 @@ class DefaultEngine:
         return True
 
     def plan(self, behaviour: Behaviour) -> TimingModel:
-        syncs = behaviour.syncs
         if behaviour.type == "speech" and behaviour.speech is not None:
             return self._speech(behaviour)
         if behaviour.type == "wait":
-            return TimingModel(syncs, (Phase(1.0, weight=self.wait_weight),))
-        if len(syncs) == 2:
-            return TimingModel(syncs, (Phase(1.0),))
-        if syncs[1] == "attackPeak":
-            return TimingModel(syncs, tuple(Phase(p) for p in _FACE_PHASES))
-        if syncs[1] == "ready" and len(syncs) == 4:
-            # gaze, posture, locomotion: the hold between ready and relax
-            # lasts as long as it is asked to.
-            weights = (1.0, 0.05, 1.0)
-            return TimingModel(
-                syncs, tuple(Phase(p, w) for p, w in zip(_HOLD_PHASES, weights, strict=True))
-            )
-        return self._gesture(syncs)
-
-    @staticmethod
-    def _gesture(syncs: Sequence[str]) -> TimingModel:
-        phases = []
-        for before, after in itertools.pairwise(syncs):
-            if after.startswith("stroke:"):
-                preferred = _REPEAT
-            else:
-                preferred = _GESTURE_PHASES.get((before.partition(":")[0], after), 0.3)
-            phases.append(Phase(preferred))
-        return TimingModel(tuple(syncs), tuple(phases))
+            return TimingModel(behaviour.syncs, (Phase(1.0, weight=self.wait_weight),))
+        return _plain_model(behaviour.syncs)
 
     def _speech(self, behaviour: Behaviour) -> TimingModel:
         assert behaviour.speech is not None
