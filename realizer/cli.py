@@ -18,18 +18,18 @@ from realizer import __version__
 #: Modules of :mod:`realizer.commands`, in the order ``--help`` lists them.
 COMMANDS: tuple[str, ...] = (
     "parse",
-    "bench",
+    "schedule",
+    "plot",
+    "render",
+    "serve",
+    "send",
+    "face",
+    "fap_sheet",
     "facs",
     "emotion",
     "faps",
     "plot_faps",
-    "fap_sheet",
-    "face",
-    "serve",
-    "send",
-    "render",
-    "schedule",
-    "plot",
+    "bench",
 )
 
 
