@@ -13,6 +13,8 @@ declares any namespace that is not in scope where it is used.
 
 from __future__ import annotations
 
+import re
+
 from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement
 from realizer.bml_parser.tree import Block
 
@@ -22,6 +24,17 @@ _TEXT_ESCAPES = str.maketrans({"&": "&amp;", "<": "&lt;", ">": "&gt;", "\r": "&#
 _ATTR_ESCAPES = str.maketrans(
     {"&": "&amp;", "<": "&lt;", '"': "&quot;", "\t": "&#9;", "\n": "&#10;", "\r": "&#13;"}
 )
+# Most values need no escaping; finding that out is cheaper than translating.
+_TEXT_SPECIAL = re.compile("[&<>\r]").search
+_ATTR_SPECIAL = re.compile('[&<"\t\n\r]').search
+
+
+def _text(value: str) -> str:
+    return value.translate(_TEXT_ESCAPES) if _TEXT_SPECIAL(value) else value
+
+
+def _attr(value: str) -> str:
+    return value.translate(_ATTR_ESCAPES) if _ATTR_SPECIAL(value) else value
 
 
 def _split(clark: str) -> tuple[str, str]:
@@ -46,7 +59,7 @@ class _Writer:
             assert isinstance(node, ProcessingInstruction)
             out.append(f"<?{node.target} {node.text}?>" if node.text else f"<?{node.target}?>")
         if node.tail:
-            out.append(node.tail.translate(_TEXT_ESCAPES))
+            out.append(_text(node.tail))
 
     def fresh_prefix(self, scope: dict[str | None, str]) -> str:
         while True:
@@ -82,7 +95,7 @@ class _Writer:
         parts = [f"<{qname}"]
         for declared_prefix, uri in decls:
             name = f"xmlns:{declared_prefix}" if declared_prefix else "xmlns"
-            parts.append(f' {name}="{uri.translate(_ATTR_ESCAPES)}"')
+            parts.append(f' {name}="{_attr(uri)}"')
         for key, value in element.attributes:
             if key[0] == "{":
                 attr_ns, attr_local = _split(key)
@@ -95,9 +108,9 @@ class _Writer:
                     if attr_prefix is None:
                         attr_prefix = self.fresh_prefix(scope)
                         scope = {**scope, attr_prefix: attr_ns}
-                        parts.append(f' xmlns:{attr_prefix}="{attr_ns.translate(_ATTR_ESCAPES)}"')
+                        parts.append(f' xmlns:{attr_prefix}="{_attr(attr_ns)}"')
                 key = f"{attr_prefix}:{attr_local}"
-            parts.append(f' {key}="{value.translate(_ATTR_ESCAPES)}"')
+            parts.append(f' {key}="{_attr(value)}"')
         if not element.text and not element.children:
             parts.append("/>")
             out.append("".join(parts))
@@ -105,7 +118,7 @@ class _Writer:
         parts.append(">")
         out.append("".join(parts))
         if element.text:
-            out.append(element.text.translate(_TEXT_ESCAPES))
+            out.append(_text(element.text))
         for child in element.children:
             self.node(child, scope)
         out.append(f"</{qname}>")
