@@ -76,6 +76,11 @@ class ProgressBar:
         if not self.quiet:
             print(file=sys.stderr, flush=True)
 
+    def say(self, line: str) -> None:
+        """Print a line above the bar (the bar is redrawn by the next step)."""
+        clear = "" if self.quiet else "\r\033[K"
+        print(f"{clear}{line}", file=sys.stderr, flush=True)
+
 
 def run(args: argparse.Namespace) -> int:
     import numpy as np
@@ -152,6 +157,8 @@ def run(args: argparse.Namespace) -> int:
                 else:
                     save_png(image, args.output / f"frame_{frame.number:05d}.png")
                 count += 1
+                for fb in frame.feedback:  # the feedback as the block plays
+                    progress.say(" ".join(fb.xml.split()))
                 progress.step(frame.time)
     except (BrokenPipeError, OSError) as exc:
         progress.close()

@@ -171,6 +171,10 @@ def test_render_writes_one_png_per_frame_and_the_mouth_moves(tmp_path: Path) -> 
     assert len(files) == 14
     images = [np.asarray(Image.open(f).convert("RGB"), dtype=np.int16) for f in files]
     assert images[0].shape == (96, 96, 3)
+    # the feedback is printed as the block plays, in time order, up to its end
+    progress = re.findall(r'<(?:blockProgress|syncPointProgress)[^>]* id="([^"]+)"', done.stderr)
+    assert progress[0] == "r:start" and progress[-1] == "r:end"
+    assert progress.index("r:smile:start") < progress.index("r:smile:end")
     assert np.array_equal(images[0], images[1])  # nothing before the smile starts
     assert np.abs(images[6] - images[0]).sum() > 0  # mid-smile
     assert np.array_equal(images[0], images[-1])  # neutral again after the end
