@@ -160,26 +160,6 @@ class Problem:
         """``t_key == time`` (seconds after the block start)."""
         self.equal(key, 0.0, BLOCK_START, time, source)
 
-    def without(self, dropped: set[Source], behaviours: set[str] = frozenset()) -> Problem:  # type: ignore[assignment]
-        """A copy without the constraints of ``dropped`` and the named behaviours."""
-
-        def keep(relation: _Relation) -> bool:
-            return (
-                relation.source not in dropped
-                and relation.a[0] not in behaviours
-                and relation.b[0] not in behaviours
-            )
-
-        problem = Problem()
-        for key in self.keys:
-            if key[0] not in behaviours:
-                problem.keys.setdefault(key, None)
-        problem.phases = [p for p in self.phases if p[0][0] not in behaviours]
-        problem.equalities = [r for r in self.equalities if keep(r)]
-        problem.orderings = [r for r in self.orderings if keep(r)]
-        problem.starts = [k for k in self.starts if k[0] not in behaviours]
-        return problem
-
 
 # -- difference constraints and conflicts ------------------------------------
 
@@ -469,6 +449,28 @@ def _eliminate(
     return labels.astype(np.int64), offset
 
 
+class _Forest:
+    """Disjoint sets over ``0 .. size - 1`` (path halving)."""
+
+    def __init__(self, size: int) -> None:
+        self.parent = list(range(size))
+
+    def find(self, a: int) -> int:
+        parent = self.parent
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    def union(self, a: int, b: int) -> bool:
+        """Join the sets of ``a`` and ``b``; False if they were one already."""
+        ra, rb = self.find(a), self.find(b)
+        if ra == rb:
+            return False
+        self.parent[ra] = rb
+        return True
+
+
 def _independent(ri: np.ndarray, rj: np.ndarray, rows: Iterable[int], n: int) -> list[int]:
     """The rows of ``rows`` that form a spanning forest (so are linearly independent).
 
@@ -477,22 +479,12 @@ def _independent(ri: np.ndarray, rj: np.ndarray, rows: Iterable[int], n: int) ->
     cycle of rows held as equalities is implied by them (or contradicts them,
     which the caller sees as a violated row).
     """
-    parent = list(range(n + 1))
-
-    def find(a: int) -> int:
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    kept = []
-    for row in rows:
-        i, j = int(ri[row]), int(rj[row])
-        a, c = find(i if i >= 0 else n), find(j if j >= 0 else n)
-        if a != c:
-            parent[a] = c
-            kept.append(int(row))
-    return kept
+    forest = _Forest(n + 1)
+    return [
+        int(row)
+        for row in rows
+        if forest.union(int(ri[row]) if ri[row] >= 0 else n, int(rj[row]) if rj[row] >= 0 else n)
+    ]
 
 
 def _primal_dual_active_set(
@@ -695,24 +687,14 @@ def _polish(
     # The pinned component (the block start's) is the zero node's group: its
     # phases tie it to the block start already.
     zero = pinned_comp
-    parent = list(range(max(int(var_comp.max(initial=-1)), pinned_comp) + 1))
-
-    def find(a: int) -> int:
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
+    forest = _Forest(max(int(var_comp.max(initial=-1)), pinned_comp) + 1)
     for row in working:
         i, j = int(ri[row]), int(rj[row])
-        a = find(int(var_comp[i]) if i >= 0 else zero)
-        c = find(int(var_comp[j]) if j >= 0 else zero)
-        if a != c:
-            parent[a] = c
+        forest.union(int(var_comp[i]) if i >= 0 else zero, int(var_comp[j]) if j >= 0 else zero)
     hold: list[int] = []
-    held: set[int] = {find(zero)}
+    held: set[int] = {forest.find(zero)}
     for v in pulled.tolist():
-        group = find(int(var_comp[v]))
+        group = forest.find(int(var_comp[v]))
         if group not in held:
             held.add(group)
             hold.append(int(v))
