@@ -22,9 +22,8 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from typing import Literal, NotRequired, TypedDict
-from xml.sax.saxutils import escape, quoteattr
 
-from realizer.bml_parser import BML_NS
+from realizer.feedback import warning
 from realizer.service.errors import BadMessage
 
 #: Version of both endpoints' messages; bumped on any incompatible change.
@@ -237,9 +236,6 @@ def read_subscribe_message(text: str) -> SubscribeRequest:
 
 
 def warning_feedback_xml(block_id: str, character_id: str, warning_type: str, text: str) -> str:
-    """A BML 1.0 ``warningFeedback`` element for a warning the service makes."""
-    return (
-        f"<warningFeedback xmlns={quoteattr(BML_NS)} id={quoteattr(block_id)} "
-        f"characterId={quoteattr(character_id)} type={quoteattr(warning_type)}>"
-        f"{escape(text)}</warningFeedback>"
-    )
+    """A BML 1.0 ``warningFeedback`` element for a warning the service makes
+    (the same element the session writes, :func:`realizer.feedback.warning`)."""
+    return warning(block_id, block_id, warning_type, text, 0.0, character_id).xml
