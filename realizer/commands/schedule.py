@@ -91,7 +91,7 @@ def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
     (``path:line:col: error: message``) of those that did not.
     """
     from realizer.bml_parser import BmlError, parse_bml
-    from realizer.session import Session
+    from realizer.session import BlockState, Session
 
     session = Session()
     outcomes: list[ScheduledFile] = []
@@ -103,15 +103,15 @@ def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
             errors.append(f"{path}:0:0: error: {exc.strerror}")
             continue
         try:
-            # Parsed here first for the error's position in *this* file; the
-            # session would only report it as a warningFeedback.
-            parse_bml(data, source=str(path), limits=session.limits.parse)
+            # Parsed here, for the error's position in *this* file (the
+            # session would only report it as a warningFeedback); the session
+            # takes the parsed block as it is.
+            parsed = parse_bml(data, source=str(path), limits=session.limits.parse)
         except BmlError as exc:
             errors.append(str(exc))
             continue
-        plan = session.receive_bml(data, now=0.0)
+        plan = session.receive_bml(parsed, now=0.0)
         outcomes.append(ScheduledFile(path, plan, warnings_of(session.take_feedback())))
-    from realizer.session import BlockState
 
     outcomes = [
         ScheduledFile(
