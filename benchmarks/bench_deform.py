@@ -1,6 +1,6 @@
 """Deformation speed: frames per second of ``deform`` next to a plain vertex copy.
 
-Goal (issue 4): a frame within 3x the time of merely copying the vertex
+Goal: a frame within 3x the time of merely copying the vertex
 buffer. Heads: the default face when ``realizer.face.default`` exists, the
 procedural test head, and the test head subdivided twice (> 100,000
 vertices). Frames: a typical talking frame (jaw, lips, brows, lids, gaze,

@@ -13,6 +13,7 @@ tree built from lxml must pay; its ratio bounds what the parser can reach.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -29,11 +30,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def corpus() -> list[bytes]:
     paths = sorted((ROOT / "examples" / "bml").glob("*.xml"))
-    for candidate in (ROOT.parent / "shared", Path("/work/shared")):
-        directory = candidate / "conformance" / "openbmlparser-bmltest"
-        if directory.is_dir():
-            paths += sorted(directory.glob("*.xml"))
-            break
+    # more BML from elsewhere (for example a conformance corpus): a folder of
+    # .xml files named by REALIZER_BML_CORPUS
+    extra = os.environ.get("REALIZER_BML_CORPUS")
+    if extra and Path(extra).is_dir():
+        paths += sorted(Path(extra).glob("*.xml"))
     documents = []
     for path in paths:
         data = path.read_bytes()

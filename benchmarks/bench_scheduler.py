@@ -1,10 +1,10 @@
 """Solve time of the scheduler against the number of behaviours in a block.
 
 Generated blocks repeat a unit of six behaviours that holds the three kinds
-of structure the scheduler has to handle (seed 000 section 3.3):
+of structure the scheduler has to handle (Paul 2010, section 3.3):
 
 * a cycle: three face lexemes tied start to end in a ring with a fixed
-  overall span of 4 s (seed 000 figure 3.7), which an in-order scheduler
+  overall span of 4 s (Paul 2010, figure 3.7), which an in-order scheduler
   cannot place and the QP solves by sharing the stretch;
 * chains: every unit's ring starts at the end of the previous unit, a nod's
   stroke is tied to the ring's last relax, a beat gesture starts with the nod;

@@ -1,4 +1,4 @@
-"""Load benchmark of the real-time service, on loopback only (issue 6).
+"""Load benchmark of the real-time service, on loopback only.
 
 Starts ``realizer serve`` (the real session, parser and face) as a child
 process on a free loopback port, connects viewers and one submitter, and
@@ -19,7 +19,7 @@ for each load (characters x viewers) measures
 * a stalled viewer (never reads, float32 vertex frames): the server's
   memory before and after, with another viewer still served.
 
-Goal (issue 6): p99 latency under one frame period at 60 fps with 10
+Goal: p99 latency under one frame period at 60 fps with 10
 characters and 100 viewers; no drift over 10 minutes (``--long``).
 
 The viewers are lean raw-protocol clients (``LeanViewer``) in one Python

@@ -2,7 +2,7 @@
 
 Re-exported here so users write ``from realizer.client import SubmitClient``;
 the implementation stays under :mod:`realizer.service`, the only package that
-may import websockets (ARCHITECTURE.md decision 1).
+may import websockets (the core is sans-I/O, see docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The realizer session: one character's blocks, from BML text to feedback and frames.
 
-Sans-I/O (ARCHITECTURE.md decision 1): a session never reads a clock and
+Sans-I/O (see docs/architecture.md): a session never reads a clock and
 never touches a socket. The caller passes the current time ``now`` (seconds,
 any monotonic clock) to every call and takes what is due::
 

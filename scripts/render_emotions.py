@@ -1,19 +1,19 @@
 """Render the emotion converter on the default face: docs/images/emotions_*.png.
 
-Two strips (seed 000 section 6.4):
+Two strips (Paul 2010, section 6.4):
 
 - ``emotions_archetypes.png``: the six archetypal emotions, each at its own
   activation with its default profile (realizer/face/data/emotion/wheels.txt),
-  in the order of seed 000 figure 6.9: joy, sadness, anger, fear, disgust,
+  in the order of Paul 2010, figure 6.9: joy, sadness, anger, fear, disgust,
   surprise;
-- ``emotions_profiles.png``: every archetypal profile of seed 001 Table 5
+- ``emotions_profiles.png``: every archetypal profile of Raouzaiou et al. 2002, Table 5
   at its archetype's activation (one row per archetype), from which the
-  default profiles were chosen by eye as seed 000 section 6.4 did;
-- ``emotions_wheel_walk.png``: seed 000's walk over the evenly spaced wheel,
+  default profiles were chosen by eye as Paul 2010, section 6.4 did;
+- ``emotions_wheel_walk.png``: Paul 2010's walk over the evenly spaced wheel,
   16 angles 22.5 degrees apart (rows) at activation 1, 3, 5 and 7 (columns),
   labelled with the wheel's emotion names.
 
-Each profile's midpoints are clamped to the FAP ranges of seed 002 Table 7,
+Each profile's midpoints are clamped to the FAP ranges of Tekalp and Ostermann 2000, Table 7,
 deformed and rendered offscreen (OSMesa or EGL). Run from the repository root:
 
     .venv/bin/python scripts/render_emotions.py [--out docs/images] [--size 256]

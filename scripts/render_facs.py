@@ -1,10 +1,10 @@
 """Render every Action Unit, viseme and expression of the converters on the default face.
 
-Writes ``docs/images/facs_aus.png``: one tile per AU of seed 000 Appendix A at
-intensity 1 (both sides), labelled with its FACS name, the way seed 000
+Writes ``docs/images/facs_aus.png``: one tile per AU of Paul 2010, Appendix A at
+intensity 1 (both sides), labelled with its FACS name, the way Paul 2010
 section 5.3 set FaceEditor screenshots beside the CMU photographs; and
 ``docs/images/visemes_expressions.png``: the 15 visemes of FAP 1 and the six
-expressions of FAP 2 at intensity 63 (seed 002 Tables 3 and 4). Run from the
+expressions of FAP 2 at intensity 63 (Tekalp and Ostermann 2000, Tables 3 and 4). Run from the
 repository root:
 
     .venv/bin/python scripts/render_facs.py [--out docs/images] [--size 160]

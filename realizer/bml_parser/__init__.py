@@ -10,7 +10,7 @@
     assert canonical(serialise(result.block)) == canonical(text)
 
 BML 1.0 core (namespace ``http://www.bml-initiative.org/bml/bml-1.0``), core
-extensions, the older draft dialect (seed 000) and this project's face
+extensions, the older draft dialect (Paul 2010) and this project's face
 extensions (``urn:realizer:bml:face-1.0``, see ``protocols/bml-extensions.md``).
 """
 

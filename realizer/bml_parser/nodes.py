@@ -6,7 +6,7 @@ all that XML canonicalisation (C14N 2.0) looks at: element and attribute
 names with their namespaces and prefixes, namespace declarations where they
 were made, attribute order, text and tails, comments and processing
 instructions. That is what makes ``serialise(parse(text))`` give the
-document back (seed 000 section 3.2: "the BML document can be
+document back (Paul 2010, section 3.2: "the BML document can be
 reconstructed").
 
 Nodes are immutable; ``line`` is not part of equality.

@@ -1,6 +1,6 @@
 """Recursive-descent BML reader over a hardened lxml element tree.
 
-Seed 000 chapter 3 describes the parser this one grows from: a recursive
+Paul 2010, chapter 3 describes the parser this one grows from: a recursive
 descent whose object tree reconstructs the document. Here lxml builds the
 element tree (fast, with line numbers) under strict settings, and one
 function per grammar rule turns elements into the typed, immutable nodes of

@@ -1,10 +1,10 @@
 """``realizer emotion``: the FAP profile of an emotion word or a wheel point.
 
 ``--word W`` takes the word's activation and Plutchik angle from the emotion
-vocabulary (seed 001 Table 6); ``--angle DEG --activation A`` is a point on
-the wheel (``--wheel measured``, the default: seed 001's angles;
-``--wheel ideal``: seed 000's evenly spaced wheel). ``--profile fear=8``
-picks an archetypal profile by its number in seed 001 Table 5 (defaults in
+vocabulary (Raouzaiou et al. 2002, Table 6); ``--angle DEG --activation A`` is a point on
+the wheel (``--wheel measured``, the default: Raouzaiou et al. 2002's angles;
+``--wheel ideal``: Paul 2010's evenly spaced wheel). ``--profile fear=8``
+picks an archetypal profile by its number in Raouzaiou et al. 2002, Table 5 (defaults in
 ``realizer/face/data/emotion/wheels.txt``). Prints each FAP's range and the
 midpoint that is animated, or with ``--json`` an object from FAP number (a
 string) to ``[low, high]``. Errors: a message on stderr and exit 2.
@@ -33,7 +33,7 @@ def register(subparsers: Any) -> None:
         action="append",
         default=[],
         metavar="ARCHETYPE=K",
-        help="archetypal profile by its seed 001 Table 5 number (repeatable)",
+        help="archetypal profile by its number in Raouzaiou et al. 2002, Table 5 (repeatable)",
     )
     parser.add_argument(
         "--weighting",

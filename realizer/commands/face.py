@@ -1,7 +1,7 @@
 """``realizer face``: render one pose of a face to a PNG.
 
 ``realizer face --faps "3=400 31=200" -o face.png`` sets FAPs by number (or
-name) and value (FAPU-scaled units, seed 002 Table 7) on the default face (or
+name) and value (FAPU-scaled units, Tekalp and Ostermann 2000, Table 7) on the default face (or
 ``--face PATH``) and renders it from the fixed frontal camera of
 :mod:`realizer.face.render`. ``realizer face FILE.fap -o face.png`` takes the
 first frame of a .fap file (:mod:`realizer.face.fapfile`; ``--frame N``

@@ -2,7 +2,7 @@
 
 Each AU is ``N``, ``NL`` or ``NR`` (left or right side) with an optional
 intensity 0..1 after a colon (``12L:0.8``; default 1), converted with the
-default mapping (seed 000 chapter 5; ``realizer/face/data/facs/default.map``)
+default mapping (Paul 2010, chapter 5; ``realizer/face/data/facs/default.map``)
 or the one given by ``--mapping``. Prints one ``FAP name value`` line per FAP,
 or with ``--json`` an object from FAP number (a string) to value, in
 FAPU-scaled units. Unknown AUs: a message on stderr and exit 2.
@@ -17,7 +17,10 @@ from typing import Any
 
 
 def fap_names() -> tuple[str, ...]:
-    """FAP names of seed 002 Table 7 (the face's FAP table), FAP n at index n - 1."""
+    """FAP names of Tekalp and Ostermann 2000, Table 7 (the face's FAP table).
+
+    FAP n is at index n - 1.
+    """
     from realizer.face.faps import FAP_COUNT, FAP_TABLE
 
     return tuple(FAP_TABLE[n].name for n in range(1, FAP_COUNT + 1))
@@ -31,7 +34,7 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("aus", nargs="+", metavar="AU", help="e.g. 1 2 12L:0.8")
     parser.add_argument("--json", action="store_true", help="print a JSON object")
-    parser.add_argument("--mapping", type=Path, help="a mapping file (seed 000 figure 5.2)")
+    parser.add_argument("--mapping", type=Path, help="a mapping file (Paul 2010, figure 5.2)")
     parser.set_defaults(run=run)
 
 

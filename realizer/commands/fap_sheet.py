@@ -1,6 +1,6 @@
 """``realizer fap-sheet``: every FAP of a face on one contact sheet.
 
-The evaluation method of seed 000 section 4.4.2 (figure 4.20): for each FAP
+The evaluation method of Paul 2010, section 4.4.2 (figure 4.20): for each FAP
 3..68, the neutral face, the face with the FAP set (and, for bidirectional
 FAPs, with minus that value), and the difference between pose and neutral
 drawn over the neutral face, blurred and at 25 % intensity, so that one sees
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
     from realizer.face.model import Face
 
-#: Intensity of the blurred neutral face under the differences (seed 000 4.4.2).
+#: Intensity of the blurred neutral face under the differences (Paul 2010, 4.4.2).
 UNDERLAY_INTENSITY = 0.25
 #: Radius (pixels) of the Gaussian blur of the underlay.
 UNDERLAY_BLUR = 3.0
@@ -65,7 +65,7 @@ def load_sheet_entries() -> list[SheetEntry]:
 def difference_over_underlay(
     neutral: npt.NDArray[np.uint8], pose: npt.NDArray[np.uint8]
 ) -> npt.NDArray[np.uint8]:
-    """Seed 000 figure 4.20, last panel: |pose - neutral| (times
+    """Paul 2010, figure 4.20, last panel: |pose - neutral| (times
     :data:`DIFFERENCE_GAIN`) over the neutral image blurred and dimmed to
     :data:`UNDERLAY_INTENSITY`. The background is black, so it stays black."""
     import numpy as np
@@ -116,7 +116,7 @@ def build_sheet(face: Face, tile: int = 128) -> npt.NDArray[np.uint8]:
     draw.text(
         (6, 6),
         f"FAP contact sheet of face '{face.name}': neutral | +value | "
-        "difference over blurred neutral (seed 000 fig. 4.20) | -value | difference",
+        "difference over blurred neutral (Paul 2010, fig. 4.20) | -value | difference",
         fill=(230, 230, 230),
     )
     neutrals: dict[tuple[str, float], npt.NDArray[np.uint8]] = {}

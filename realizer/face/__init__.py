@@ -1,8 +1,10 @@
 """MPEG-4 facial animation: FAP table, FAPU, feature points, face model, deformation.
 
-Seeds: 002 (Tekalp & Ostermann, section 2.1 and Annex: FAPs, feature points,
-FAPU, FaceDefMesh/FaceDefTransform) and 000 (chapter 4: FaceEditor's
-deformers, vertex masks, rigid jaw, eyes and neck, the parameter XML).
+Sources: Tekalp and Ostermann, "Face and 2-D mesh animation in MPEG-4" (2000),
+section 2.1 and Annex: FAPs, feature points, FAPU, FaceDefMesh/FaceDefTransform;
+and Paul, "Realization and high level specification of facial expressions for
+embodied agents" (2010), chapter 4: FaceEditor's deformers, vertex masks, rigid
+jaw, eyes and neck, the parameter XML. See docs/references.md.
 
 The public names are imported lazily, so ``import realizer.face`` stays cheap:
 

@@ -5,9 +5,9 @@ and ``default_face.xml``, the face file pair of :mod:`realizer.face.paramfile`;
 ``ORIGIN.md`` and ``LICENSE.md`` say where they come from: MakeHuman hm08,
 CC0 1.0). ``scripts/extract_default_face.py`` made them and reproduces them.
 
-Feature points of seed 002 Table 6 are placed on it (all but 11.5, hair
+Feature points of Tekalp and Ostermann 2000, Table 6 are placed on it (all but 11.5, hair
 thickness: the head has no hair), and FAPs 3..68 have deformation settings
-in the face parameter format of seed 000 Appendix C.
+in the face parameter format of Paul 2010, Appendix C.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Deformation: a FAP vector and a face -> deformed vertex positions.
 
-Seed 000 §4.3.3-4.3.4 (influence ellipsoids, easing, Bezier smoothing, vertex
-masks; lower jaw, eyes and neck as rigid objects) and seed 002 §2.1.3.4
+Paul 2010, §4.3.3-4.3.4 (influence ellipsoids, easing, Bezier smoothing, vertex
+masks; lower jaw, eyes and neck as rigid objects) and Tekalp and Ostermann 2000, §2.1.3.4
 (FaceDefMesh, FaceDefTransform). :func:`deform` is a pure function of
 (face, FAP vector); the work that depends only on the face is done once, in
 a :class:`FaceRig` cached per face, so a frame costs O(affected vertices):
@@ -18,11 +18,11 @@ a :class:`FaceRig` cached per face, so a frame costs O(affected vertices):
 
 How the displacements of several FAPs on one vertex combine
 --------------------------------------------------------------
-FaceEditor (seed 000 §4.3.1) *averages* the displacements a vertex gets. Then
+FaceEditor (Paul 2010, §4.3.1) *averages* the displacements a vertex gets. Then
 a feature point whose neighbours' spheres reach it moves less than its FAP
-says, and three raised upper-lip points give the w-shaped lip of seed 000
+says, and three raised upper-lip points give the w-shaped lip of Paul 2010
 Figure 7.1; plain *summing* has the opposite fault (the overlap bulges
-beyond any FAP's amplitude). Seed 000 §7.1 suggests cancelling a vertex's
+beyond any FAP's amplitude). Paul 2010, §7.1 suggests cancelling a vertex's
 extra vectors that point the same way. We do that smoothly, per axis and
 sign: the contributions i * a_f * u_f of the influence deformers are summed
 separately for positive and negative components of each axis, and each sum
@@ -77,7 +77,7 @@ SELECTION_CACHE = 16
 
 
 def ease_exponent(ease: float) -> float:
-    """Seed 000 §4.3.3: 1 + e/100 for e < 0, 1 + e/20 for e >= 0 (e in -100..100)."""
+    """Paul 2010, §4.3.3: 1 + e/100 for e < 0, 1 + e/20 for e >= 0 (e in -100..100)."""
     if not -100.0 <= ease <= 100.0:
         raise FaceError(f"ease must be in -100..100, not {ease}")
     return 1.0 + ease / 100.0 if ease < 0 else 1.0 + ease / 20.0
@@ -99,7 +99,7 @@ def cosine_falloff(r: np.ndarray) -> np.ndarray:
 
 
 def smooth_falloff(r: np.ndarray, smooth_center: float, smooth_side: float) -> np.ndarray:
-    """Bezier influence curve of seed 000 §4.3.4 (see :class:`SmoothDeformer`).
+    """Bezier influence curve of Paul 2010, §4.3.4 (see :class:`SmoothDeformer`).
 
     ``smooth_center`` and ``smooth_side`` are percent (0..100) of the size.
     """

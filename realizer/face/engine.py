@@ -15,10 +15,10 @@ Behaviours and what they become:
 =====================  ===========================================  ========  =======
 behaviour              FAP values                                   priority  blend
 =====================  ===========================================  ========  =======
-emotion (rf:)          emotion converter (seed 001, seed 000 ch 6)  0         add
-expression (rf:)       FAP 2 expressions (seed 002 Table 4)         0         add
-viseme (rf:)           FAP 1 visemes (seed 002 Table 3)             1         add
-faceLexeme, face       BML lexeme -> AUs -> FAPs (seed 000 ch 5)    2         add
+emotion (rf:)          emotion converter (Raouzaiou et al. 2002, Paul 2010, ch 6)  0         add
+expression (rf:)       FAP 2 expressions (Tekalp and Ostermann 2000, Table 4)         0         add
+viseme (rf:)           FAP 1 visemes (Tekalp and Ostermann 2000, Table 3)             1         add
+faceLexeme, face       BML lexeme -> AUs -> FAPs (Paul 2010, ch 5)    2         add
 faceFacs               one AU -> FAPs                               2         add
 faceShift              a lexeme that stays after ``end``            2         add
 head                   NOD / SHAKE / TILT keyframes on FAPs 48-50   2         add
@@ -26,9 +26,9 @@ gaze, gazeShift        eyeball FAPs 23-26, head 48/49 by influence  2         re
 fap (rf:)              explicit low-level FAPs                      3         replace
 =====================  ===========================================  ========  =======
 
-Emotions and expressions are the base layer that refinements add to (seed
-000 section 7.4 advises setting the controller with the fewest parameters
-first); explicit low-level FAPs win over FAP 1 and 2 as seed 002 section
+Emotions and expressions are the base layer that refinements add to (Paul
+2010, section 7.4, advises setting the controller with the fewest parameters
+first); explicit low-level FAPs win over FAP 1 and 2 as Tekalp and Ostermann 2000, section
 2.1 asks ("the lower level FAPs have priority"); a gaze replaces the previous
 gaze direction rather than adding to it.
 
@@ -109,7 +109,7 @@ PRIORITY: dict[str, int] = {
 }
 BLEND: dict[str, Blend] = {"fap": "replace", "gaze": "replace", "gazeShift": "replace"}
 
-#: Angle units per degree (FAPU "AU" is 1e-5 rad, seed 002 Table 7).
+#: Angle units per degree (FAPU "AU" is 1e-5 rad, Tekalp and Ostermann 2000, Table 7).
 ANGLE_UNITS_PER_DEGREE = math.pi / 180.0 * 1e5
 
 #: (yaw to the left, pitch down) unit directions of the BML direction words.
@@ -452,7 +452,7 @@ class FaceEngine:
     def _gaze(self, behaviour: Behaviour) -> FapConfiguration:
         data = load_engine_data()["gaze"]
         target = (behaviour.param("target") or "").strip().upper().replace("_", "")
-        # the draft dialect (seed 000) names them direction and angle
+        # the draft dialect (Paul 2010) names them direction and angle
         direction_word = (
             (behaviour.param("offsetDirection") or behaviour.param("direction") or "")
             .strip()
@@ -497,7 +497,7 @@ class FaceEngine:
 
 
 def default_limits() -> FapLimits:
-    """Each FAP's range from the FAP table of :mod:`realizer.face.faps` (seed 002
+    """Each FAP's range from the FAP table of :mod:`realizer.face.faps` (Tekalp and Ostermann 2000
     Table 7): the I-frame quantised minimum and maximum times the quantisation
     step, i.e. the largest values an MPEG-4 FAP stream can carry (a
     unidirectional FAP such as open_jaw cannot go below 0). Unbounded if the

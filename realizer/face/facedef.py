@@ -1,14 +1,16 @@
-"""MPEG-4 face animation tables: FaceDefMesh and FaceDefTransform (seed 002 §2.1.3.4).
+"""MPEG-4 face animation tables: FaceDefMesh and FaceDefTransform.
+
+Tekalp and Ostermann 2000, §2.1.3.4.
 
 A **FaceDefMesh** gives, for one FAP, interval borders I_1 < ... < I_max of the
 FAP value and, for each affected vertex, one 3D displacement D_k per interval
 (in FAPU, i.e. metres = FAPU x D). The vertex moves along a continuous
 piecewise-linear path: slope D_k while the FAP value runs through interval k,
-starting from the neutral position at FAP = 0 (seed 002 Figure 5). Values
+starting from the neutral position at FAP = 0 (Tekalp and Ostermann 2000, Figure 5). Values
 beyond the outermost borders continue the outermost slopes. One interval is
 the linear case P' = P + FAPU * FAP * D.
 
-Sign of negative values: seed 002 prints the rule for FAP < 0 as
+Sign of negative values: Tekalp and Ostermann 2000 prints the rule for FAP < 0 as
 ``P' = P + FAPU * ((I_j+1 - FAP) * D_j + ... + (0 - I_k-1) * D_k-1)``, which
 moves a vertex the *same* way for -100 as for +100 and breaks the linear case
 ``P' = P + FAPU * FAP * D`` it states next. We keep the continuous path of
@@ -17,7 +19,7 @@ and test both.
 
 A **FaceDefTransform** animates a transform node: a rotation about an axis
 (angle = FAP x FAPU x scale), a translation along an axis (distance = FAP x
-FAPU x scale) or a scale. Seed 002 Table 5: FAP 23 rotates the node LeftEyeX
+FAPU x scale) or a scale. Tekalp and Ostermann 2000, Table 5: FAP 23 rotates the node LeftEyeX
 about (0, -1, 0) with scale 1. Here the node is a set of named parts of the
 face, turning about a pivot: :class:`realizer.face.model.FaceDefTransform`
 (the same class as ``TransformDeformer``; rotations and translations --
@@ -87,7 +89,7 @@ def interval_weights(borders: np.ndarray, value: float | np.ndarray) -> np.ndarr
     """How far the path from 0 to ``value`` runs through each interval (signed).
 
     For borders (-1000, 0, 500, 1000) and value 600 this is (0, 500, 100): the
-    coefficients of D_1, D_2, D_3 in seed 002's formula. The first interval
+    coefficients of D_1, D_2, D_3 in Tekalp and Ostermann 2000's formula. The first interval
     extends to -inf and the last to +inf (values beyond the table continue
     the outer slopes). ``value`` may be an array: the result has shape
     ``value.shape + (intervals,)``.
@@ -105,7 +107,7 @@ _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
 def parse_facedef_mesh_text(text: str) -> FaceDefMesh:
-    """Read the plain textual FaceDefMesh of seed 002 Table 5.
+    """Read the plain textual FaceDefMesh of Tekalp and Ostermann 2000, Table 5.
 
     Example::
 

@@ -1,4 +1,4 @@
-"""The MPEG-4 FAP table: the 68 facial animation parameters of seed 002, Table 7.
+"""The MPEG-4 FAP table: the 68 facial animation parameters of Tekalp and Ostermann 2000, Table 7.
 
 The table itself lives in ``data/faps.csv`` (a transcription of every column);
 this module loads it into :class:`FapInfo` records. :data:`FAP_TABLE` maps the
@@ -6,7 +6,7 @@ FAP number (1..68) to its record; :func:`fap` looks one up by number or name.
 
 Coordinate frame (see docs/face-model.md): right-handed, metres, the face looks
 along +z, y points up, and +x points to the face's *own* left. This is the frame
-of the FaceDefMesh example of seed 002 (FAP 6, "stretch left corner lip", has
+of the FaceDefMesh example of Tekalp and Ostermann 2000 (FAP 6, "stretch left corner lip", has
 the displacement (1, 0, 0)). "left"/"right" in the table are the face's own.
 """
 
@@ -50,7 +50,7 @@ ROTATION_AXES: dict[str, tuple[float, float, float]] = {
 
 @dataclass(frozen=True, slots=True)
 class FapInfo:
-    """One row of seed 002 Table 7.
+    """One row of Tekalp and Ostermann 2000, Table 7.
 
     ``feature_points`` are the names ("2.1") of the feature points the FAP
     moves (empty for FAPs 1, 2, 23-28 and 48-50, whose table cell is "na").
@@ -145,7 +145,7 @@ def load_fap_table() -> dict[int, FapInfo]:
     return table
 
 
-#: FAP number (1..68) -> :class:`FapInfo`, from seed 002 Table 7.
+#: FAP number (1..68) -> :class:`FapInfo`, from Tekalp and Ostermann 2000, Table 7.
 FAP_TABLE: dict[int, FapInfo] = load_fap_table()
 
 _BY_NAME = {info.name: info for info in FAP_TABLE.values()}

@@ -1,10 +1,10 @@
-"""Face animation parameter units (FAPU), seed 002 section 2.1.1, Table 1.
+"""Face animation parameter units (FAPU), Tekalp and Ostermann 2000, section 2.1.1, Table 1.
 
 FAPU are fractions of key distances of the neutral face, so the same FAP value
 means the same expression on faces of any size: IRISD = IRISD0/1024, ES =
 ES0/1024, ENS = ENS0/1024, MNS = MNS0/1024, MW = MW0/1024 (metres per unit),
 and AU = 1e-5 rad per unit. A FAP of 1024 moves its feature point by the whole
-key distance (seed 000 section 4.1).
+key distance (Paul 2010, section 4.1).
 
 Key distances from feature points (MPEG-4 Figure 1; the frame of
 docs/face-model.md, +x the face's left, +y up):

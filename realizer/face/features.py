@@ -1,4 +1,4 @@
-"""MPEG-4 feature points: the 84 points of seed 002 Table 6 (Figure 2).
+"""MPEG-4 feature points: the 84 points of Tekalp and Ostermann 2000, Table 6 (Figure 2).
 
 Feature points are named "group.index" ("3.5" = centre of the pupil of the
 left eye). The table lives in ``data/feature_points.csv``; this module loads

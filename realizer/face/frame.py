@@ -2,7 +2,7 @@
 
 A :class:`FapFrame` holds the 68 FAP values in FAPU-scaled units (FAP n at
 index n-1), a mask of which FAPs are set, the time in seconds and the frame
-number, as in the .fap files of seed 000 section 4.2.2 (a mask line and a
+number, as in the .fap files of Paul 2010, section 4.2.2 (a mask line and a
 value line per frame).
 """
 

@@ -1,8 +1,8 @@
 """The face model: neutral mesh, named parts, feature points and FAP settings.
 
-A :class:`Face` is what :func:`realizer.face.deform.deform` animates (seed 002
+A :class:`Face` is what :func:`realizer.face.deform.deform` animates (Tekalp and Ostermann 2000
 §2.1.3.1: a face model with feature points placed on it and rules for every
-FAP; seed 000 §4.3: FaceEditor's head with its deformers, vertex masks, lower
+FAP; Paul 2010, §4.3: FaceEditor's head with its deformers, vertex masks, lower
 jaw, eyes and neck). It holds
 
 * ``vertices`` (n, 3) float32, metres, neutral pose, in the frame of
@@ -14,7 +14,7 @@ jaw, eyes and neck). It holds
   used by settings. ``eyes`` and ``teeth`` are the unions; ``all`` is every
   vertex;
 * ``params``: a :class:`FaceParameters` -- the content of the face parameter
-  file of seed 000 Appendix C (feature point positions, keep-syncs, deformers,
+  file of Paul 2010, Appendix C (feature point positions, keep-syncs, deformers,
   vertex masks), see :mod:`realizer.face.paramfile`;
 * ``attributes``: further per-vertex or per-face arrays (uv, normals, colours)
   carried along unchanged for the renderer.
@@ -51,7 +51,7 @@ TINY_COORDINATE_M = 1e-12
 class InfluenceDeformer:
     """Moves the vertices inside an influence ellipsoid around a feature point.
 
-    Seed 000 §4.3.3: each vertex in the part moves along ``direction`` by
+    Paul 2010, §4.3.3: each vertex in the part moves along ``direction`` by
     FAP x FAPU x influence, where the influence falls from 1 at the feature
     point to 0 at the surface of the ellipsoid with radius ``size`` (metres)
     scaled by ``scale`` per axis. ``direction`` is the face's own 3D
@@ -60,7 +60,7 @@ class InfluenceDeformer:
     so the feature point moves exactly FAP x FAPU along that axis. For FAPs
     without an axis (e.g. the tongue roll) it is normalised to length 1.
 
-    Vertex masks (seed 000 §4.3.2, Figure 4.9): with ``use_vertex_mask`` only
+    Vertex masks (Paul 2010, §4.3.2, Figure 4.9): with ``use_vertex_mask`` only
     the vertices listed in the FAP's mask can move; with
     ``invert_vertex_mask`` as well, the listed vertices are the ones that
     stay still. ``feature_point`` overrides the FAP's own feature point
@@ -79,12 +79,12 @@ class InfluenceDeformer:
 
 @dataclass(frozen=True, slots=True)
 class EaseDeformer(InfluenceDeformer):
-    """Linear falloff raised to an easing exponent (seed 000 §4.3.3, Figure 4.12).
+    """Linear falloff raised to an easing exponent (Paul 2010, §4.3.3, Figure 4.12).
 
     ``ease`` e runs from -100 to 100; the influence i becomes i**p with
     p = 1 + e/100 for e < 0 and p = 1 + e/20 for e > 0. Negative e thus
     widens the influence (p in [0, 1): the curve bulges above the line),
-    positive e narrows it (p in (1, 6]). The seed's words "easing in" and
+    positive e narrows it (p in (1, 6]). The thesis's words "easing in" and
     "easing out" are used both ways round in §4.3.3 and §4.3.5; the formulas
     and the order of the curves in Figure 4.12 (e = -80 on top) are
     unambiguous, and they are what is implemented. e = 0 is plain linear.
@@ -95,7 +95,7 @@ class EaseDeformer(InfluenceDeformer):
 
 @dataclass(frozen=True, slots=True)
 class SmoothDeformer(InfluenceDeformer):
-    """Bezier smoothing instead of easing (seed 000 §4.3.4, Figure 4.16).
+    """Bezier smoothing instead of easing (Paul 2010, §4.3.4, Figure 4.16).
 
     The influence over the normalised distance r (1 = the ellipsoid's
     surface) follows the cubic Bezier curve with control points (0, 1),
@@ -132,7 +132,7 @@ class PointDeformer:
 
 @dataclass(frozen=True, slots=True)
 class TransformDeformer:
-    """A rigid motion of whole parts (a FaceDefTransform of seed 002).
+    """A rigid motion of whole parts (a FaceDefTransform of Tekalp and Ostermann 2000).
 
     ``kind`` "rotation": the parts turn about ``axis`` through ``pivot`` by
     FAP x FAPU x ``scale`` radians (for an angular FAP scale is 1; for the
@@ -158,7 +158,7 @@ class TransformDeformer:
     falloff: float = 0.0
 
 
-#: Seed 002's name for a transform-node animation table.
+#: Tekalp and Ostermann 2000's name for a transform-node animation table.
 FaceDefTransform = TransformDeformer
 
 
@@ -211,7 +211,7 @@ DeformerSetting = (
 
 @dataclass(frozen=True, slots=True)
 class FaceParameters:
-    """The face parameter file of seed 000 Appendix C, read into values.
+    """The face parameter file of Paul 2010, Appendix C, read into values.
 
     ``feature_points``: name -> position (metres); ``keep_syncs``: FAP
     numbers whose settings FaceEditor keeps in step with the other side;
@@ -374,7 +374,7 @@ class Face:
 
     @property
     def fapu(self) -> Fapu:
-        """The FAPU of this face, from its feature points (seed 002 Table 1)."""
+        """The FAPU of this face, from its feature points (Tekalp and Ostermann 2000, Table 1)."""
         return Fapu.from_feature_points(self.params.feature_points)
 
     def fap_feature_point(self, fap: int) -> str | None:

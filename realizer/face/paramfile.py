@@ -1,4 +1,4 @@
-"""The face parameter file (seed 000 §4.3.6, Appendix C) and the face files.
+"""The face parameter file (Paul 2010, §4.3.6, Appendix C) and the face files.
 
 The XML of FaceEditor: under the root ``faceeditor-parameters`` the children
 ``fp-positions`` (``fp-position`` elements with the feature point and its
@@ -7,7 +7,7 @@ three coordinates), ``keep-syncs`` (space-separated FAP numbers),
 indices), in that order. The DTD of Appendix C names three deformers:
 ``deformer`` (x y z fap), ``ease-deformer`` (x y z fap size scalex scaley
 scalez use-vertex-mask invert-vertex-mask ease) and ``smooth-deformer`` (the
-same with smooth-center and smooth-side instead of ease). The seed truncates
+same with smooth-center and smooth-side instead of ease). The thesis truncates
 the DTD before ``fp-position``'s attributes; we name them ``fp x y z``.
 ``x y z`` of a deformer is read as the face's 3D direction of the FAP.
 

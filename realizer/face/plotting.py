@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-#: FAPs measured in angle units (seed 002 Table 7, unit "AU").
+#: FAPs measured in angle units (Tekalp and Ostermann 2000, Table 7, unit "AU").
 ANGULAR_FAPS = frozenset({23, 24, 25, 26, 47, 48, 49, 50})
 
 

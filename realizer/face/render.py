@@ -1,13 +1,13 @@
 """Offscreen OpenGL rendering of a (deformed) face to an RGB image.
 
 This is the only module of the realizer that imports pyrender and OpenGL
-(ARCHITECTURE.md, decision 8); it imports them lazily, on the first render,
-so that importing :mod:`realizer.face.render` costs nothing.
+(heavy dependencies stay at the edges, see docs/architecture.md); it imports
+them lazily, on the first render, so that importing :mod:`realizer.face.render` costs nothing.
 
 The renderer draws the face from a fixed frontal camera (or a fixed side
 camera) framed on the *neutral* face, so that a deformation shows up as a
 change of pixels and two renders of the same face line up pixel for pixel,
-which the difference images of seed 000 section 4.4.2 (figure 4.20) need.
+which the difference images of Paul 2010, section 4.4.2 (figure 4.20) need.
 
 Platform: PyOpenGL picks its back end from ``PYOPENGL_PLATFORM`` when OpenGL
 is first imported. If the variable is unset, we choose ``egl`` where a GPU

@@ -6,7 +6,7 @@ Every face, head and gaze behaviour becomes an animation over FAPs 3..68
 Envelopes follow a behaviour's scheduled sync points ``start``,
 ``attackPeak``, ``relax``, ``end``: attack (0 -> 1), sustain (1), release
 (1 -> 0). The curve of attack and release is one of the three time curves of
-MPEG-4 bookmarks (seed 002 section 2.3, figure 14):
+MPEG-4 bookmarks (Tekalp and Ostermann 2000, section 2.3, figure 14):
 
 - ``linear``: the level moves at constant speed;
 - ``hermite``: cubic Hermite with zero end slopes, ``3u^2 - 2u^3``, which
@@ -15,7 +15,7 @@ MPEG-4 bookmarks (seed 002 section 2.3, figure 14):
   rises from ``start`` to a peak at ``attackPeak`` and falls to 0 at ``end``,
   with no sustain (``relax`` is not used).
 
-Combining (the mixer). Seed 000 section 7.4 lets the last controller that
+Combining (the mixer). Paul 2010, section 7.4 lets the last controller that
 sets a FAP overwrite it. Here overlapping animations combine per FAP:
 
 1. animations are applied in order of ``priority`` (low first), then start
@@ -77,8 +77,10 @@ def ease(kind: CurveKind, u: npt.ArrayLike) -> FloatArray:
 
 
 def bookmark_curve(kind: CurveKind, u: npt.ArrayLike) -> FloatArray:
-    """The MPEG-4 bookmark time curve (seed 002 section 2.3) over its duration ``u`` in 0..1:
-    the fraction of the way from the current amplitude to the bookmark's.
+    """The MPEG-4 bookmark time curve over its duration ``u`` in 0..1.
+
+    Tekalp and Ostermann 2000, section 2.3: the fraction of the way from the
+    current amplitude to the bookmark's.
 
     ``linear`` and ``hermite`` reach the target at ``u = 1`` and stay there;
     ``triangular`` reaches it at ``u = 0.5`` and is back at the start at ``u = 1``.

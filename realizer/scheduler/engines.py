@@ -1,6 +1,6 @@
 """Engines and the registry that maps behaviours to them.
 
-ARCHITECTURE.md decision 3: engines own timing knowledge. Each engine says
+Engines own timing knowledge (docs/architecture.md). Each engine says
 which behaviours it handles, gives a :class:`~realizer.scheduler.timing.TimingModel`
 for each (its sync points in canonical order, preferred durations, costs and
 bounds) and, once the scheduler has solved the times, realizes the behaviour

@@ -1,6 +1,6 @@
 """The scheduling optimisation: one quadratic programme over sync point times.
 
-Seed 000 section 3.3: sync points are lined up by shifting behaviours and by
+Paul 2010, section 3.3: sync points are lined up by shifting behaviours and by
 scaling their phases, and interlocked behaviours share the stretch through
 quadratic cost functions whose sum is minimised; SmartBody's in-order
 scheduler cannot handle circular dependencies, this one treats cycles as
@@ -15,7 +15,7 @@ The problem (all times in seconds, relative to the block start, which is 0):
   phase bounds ``minimum <= t_next - t_prev <= maximum`` (canonical order,
   durations never negative), and ``t_k >= 0`` (nothing before the block);
 * objective: the sum of the phase costs ``w (t_next - t_prev - preferred)^2``
-  and, as a tie-breaker, a preference for starting early (seed 000: "it is
+  and, as a tie-breaker, a preference for starting early (Paul 2010: "it is
   better to align left").
 
 Every constraint is a difference constraint, which the solver uses twice:

@@ -6,7 +6,7 @@ gives each word a duration from its length at a configurable speaking rate
 (syllables per second, estimated from vowel groups) and a pause after
 punctuation. A real TTS engine implements the same :class:`SpeechTiming`
 protocol and returns marker times from its own phoneme timings (the MPEG-4
-TTS interface of seed 002 returns bookmarks and phonemes the same way).
+TTS interface of Tekalp and Ostermann 2000 returns bookmarks and phonemes the same way).
 """
 
 from __future__ import annotations

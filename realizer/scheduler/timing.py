@@ -1,6 +1,6 @@
 """Timing models: what an engine tells the scheduler about one behaviour.
 
-Seed 000 section 3.3.3: each behaviour has one preferred length per phase and
+Paul 2010, section 3.3.3: each behaviour has one preferred length per phase and
 a cost that rises on both sides of it, quadratic so that the costs of
 interlocked behaviours add up and their minimum is found in closed form:
 ``y = a (t1 - t0)^2 + b (t1 - t0) + c``. A :class:`Phase` stores the same
@@ -42,7 +42,7 @@ class Phase:
 
     @property
     def quadratic(self) -> tuple[float, float, float]:
-        """``(a, b, c)`` of seed 000's ``y = a d^2 + b d + c``."""
+        """``(a, b, c)`` of Paul 2010's ``y = a d^2 + b d + c``."""
         return (self.weight, -2 * self.weight * self.preferred, self.weight * self.preferred**2)
 
     def cost(self, duration: float) -> float:

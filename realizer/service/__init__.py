@@ -1,4 +1,4 @@
-"""The real-time service: BML in, feedback and frames out (issue 6).
+"""The real-time service: BML in, feedback and frames out.
 
 * :mod:`~realizer.service.stage`: the sans-I/O core (characters, sessions,
   limits, routing, frame encoding); no sockets, no clock;
@@ -11,7 +11,7 @@
 * :mod:`~realizer.service.offline`: the same stage driven frame by frame
   for ``realizer render``.
 
-Only this package imports asyncio and websockets (ARCHITECTURE.md
-decision 1), and only :mod:`~realizer.service.server` and
+Only this package imports asyncio and websockets (the core is sans-I/O,
+see docs/architecture.md), and only :mod:`~realizer.service.server` and
 :mod:`~realizer.service.client` do within it.
 """

@@ -14,7 +14,7 @@
 
 It uses websockets' threading client (``websockets.sync``), so it needs no
 event loop; it lives in :mod:`realizer.service` because only the service
-package may import websockets (ARCHITECTURE.md decision 1), and
+package may import websockets (the core is sans-I/O, docs/architecture.md), and
 :mod:`realizer.client` re-exports it.
 """
 

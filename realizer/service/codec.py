@@ -1,6 +1,6 @@
 """msgpack layouts of the viewer endpoint: mesh and frame messages.
 
-Bandwidth matters (seed 002 section 3: MPEG-4's Simple Face level 2 shares
+Bandwidth matters (Tekalp and Ostermann 2000, section 3: MPEG-4's Simple Face level 2 shares
 32 kbit/s between 4 faces at 60 Hz), so a frame carries only what is not
 neutral:
 
@@ -13,7 +13,7 @@ neutral:
 Deltas are taken from the *neutral pose*, never from the previous frame: a
 slow viewer is sent only the newest frame and skips the ones in between
 (the service's bounded queues), and every frame must still decode on its
-own. This is the lesson of seed 000 section 4.2.2, where Xface lost frames
+own. This is the lesson of Paul 2010, section 4.2.2, where Xface lost frames
 sent quickly one after another and its users fell back to one upload per
 250 ms: here a viewer that cannot keep up gets fewer frames, each complete.
 

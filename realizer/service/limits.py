@@ -1,10 +1,10 @@
 """Named limits on everything a peer can make the service hold.
 
-ARCHITECTURE.md decision 7: every input has a named limit, and input over a
+Every input has a named limit (docs/architecture.md), and input over a
 limit is answered (a BML ``warningFeedback``, or a WebSocket close code with
 a reason), never a crash and never a silent drop. The defaults are sized for
 one machine serving a handful of characters to a classroom of viewers; the
-Simple Face object of MPEG-4 level 2 (seed 002 section 3) animates up to 4
+Simple Face object of MPEG-4 level 2 (Tekalp and Ostermann 2000, section 3) animates up to 4
 faces at 60 Hz, and the service is meant to do well beyond that.
 """
 

@@ -1,7 +1,7 @@
 """Every message of the two WebSocket endpoints, as typed dictionaries.
 
-The wire protocol is specified in ``protocols/`` (ARCHITECTURE.md decision
-6); this module is its Python mirror. As in uvicorn, each message is a
+The wire protocol is specified in ``protocols/`` (everything on the wire is
+documented there); this module is its Python mirror. As in uvicorn, each message is a
 ``TypedDict`` tagged by a ``Literal`` ``type`` field, so a reader sees every
 field in one place and mypy checks the code that builds them.
 

@@ -1,7 +1,8 @@
 """Driving the service's stage offline, frame by frame, for ``realizer render``.
 
 The same :class:`~realizer.service.stage.Stage` and sessions as the server
-(ARCHITECTURE.md data flow: "or renders offscreen"), with the clock replaced
+(the data flow of docs/architecture.md: frames go to viewers or to the
+offscreen renderer), with the clock replaced
 by a loop over frame times n / fps: no asyncio, no sockets, and a video
 that shows exactly what a viewer at that rate would have seen.
 """

@@ -9,7 +9,7 @@ the stage returns. One port serves
 * ``/view``  viewers: mesh, then msgpack frames (protocols/viewer.md);
 * ``/``      the browser viewer; ``/health`` and ``/version`` as JSON.
 
-Why a remotely controllable face with its own clock (seed 000 section 4.2):
+Why a remotely controllable face with its own clock (Paul 2010, section 4.2):
 the thesis drove Xface over TCP and lost frames sent quickly one after the
 other, so its frames went out once per 250 ms. Here the server owns the
 clock: frame n is computed at ``start + n / fps`` (never by adding periods,

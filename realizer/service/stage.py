@@ -1,7 +1,7 @@
 """The service's sans-I/O core: characters, their sessions, routing, frames.
 
 Like the protocol core of websockets, a :class:`Stage` never touches a
-socket and never reads a clock (ARCHITECTURE.md decision 1): the asyncio
+socket and never reads a clock (the sans-I/O core of docs/architecture.md): the asyncio
 layer (:mod:`realizer.service.server`) passes ``now`` in seconds and sends
 what the stage returns. Tests drive a stage at any speed, with no network.
 

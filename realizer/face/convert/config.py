@@ -17,7 +17,7 @@ import numpy.typing as npt
 
 from realizer.face.convert.errors import ConversionError
 
-#: Number of MPEG-4 FAPs (seed 002 Table 7).
+#: Number of MPEG-4 FAPs (Tekalp and Ostermann 2000, Table 7).
 FAP_COUNT = 68
 
 FloatArray = npt.NDArray[np.float64]
@@ -78,7 +78,7 @@ class FapConfiguration:
 def summed(configurations: Iterable[FapConfiguration]) -> FapConfiguration:
     """Per-FAP sum of configurations; a FAP is set where any of them sets it.
 
-    This is how simultaneous Action Units combine (seed 000 chapter 5 maps each
+    This is how simultaneous Action Units combine (Paul 2010, chapter 5 maps each
     AU linearly; two AUs moving the same feature point add their displacements).
     """
     values = np.zeros(FAP_COUNT)

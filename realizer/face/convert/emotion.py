@@ -1,17 +1,17 @@
-"""Emotions to MPEG-4 FAP ranges (seed 001 sections 4 and 6; seed 000 chapter 6).
+"""Emotions to MPEG-4 FAP ranges (Raouzaiou et al. 2002, sections 4 and 6; Paul 2010, chapter 6).
 
 Data (``realizer/face/data/emotion``):
 
-- ``profiles.txt``: every archetypal profile of seed 001 Table 5 in the
-  profile file format of seed 000 figure 6.5 (a label line ``Fear 8``, then
+- ``profiles.txt``: every archetypal profile of Raouzaiou et al. 2002, Table 5 in the
+  profile file format of Paul 2010, figure 6.5 (a label line ``Fear 8``, then
   ``F3 [400, 560], F5 [-240, -160], ...``).
 - ``wheels.txt``: where the six archetypes sit on Plutchik's wheel (angle in
   degrees, Whissell activation) and which profile each uses by default.
 - ``vocabulary.txt``: emotion words with activation, evaluation, angle and,
   for words "similar in nature to an archetypal one", their category.
 
-Rules. For an emotion I in the category of archetype A (seed 001 section 4.1,
-seed 000 section 6.2), every range of A's profile is scaled by
+Rules. For an emotion I in the category of archetype A (Raouzaiou et al. 2002, section 4.1,
+Paul 2010, section 6.2), every range of A's profile is scaled by
 ``a_I / a_A``. For I between archetypes A1 and A2 on the wheel (section 4.2):
 
 1. I uses the FAPs of either profile;
@@ -22,13 +22,13 @@ seed 000 section 6.2), every range of A's profile is scaled by
 4. a FAP in one profile only: ``a_I / (2 a_Ak)`` times its range ("averaged
    with the neutral face").
 
-The angular weights. Seed 001 equations (5) and (6) (and seed 000 equations
+The angular weights. Raouzaiou et al. 2002, equations (5) and (6) (and Paul 2010, equations
 6.3 and 6.4) print the weight ``(w_I - w_A1) / (w_A2 - w_A1)`` on A1's term,
-which gives I *all* of A2's profile when I sits on A1. Seed 001's own worked
+which gives I *all* of A2's profile when I sits on A1. Raouzaiou et al. 2002's own worked
 example (guilty, equation 12) puts that weight on A2 (the nearer sad) and is
 the linear interpolation. This module interpolates by default
 (``weighting="interpolate"``) and keeps the printed form as
-``weighting="as-printed"``, which seed 000's FAP 20 example follows.
+``weighting="as-printed"``, which Paul 2010's FAP 20 example follows.
 docs/emotion.md gives the numbers.
 """
 
@@ -48,7 +48,7 @@ from realizer.face.convert.facs import DATA_DIR
 
 Weighting = Literal["interpolate", "as-printed"]
 
-#: The six archetypal emotions of seed 001 (Ekman), in the order of Table 5.
+#: The six archetypal emotions of Raouzaiou et al. 2002 (Ekman), in the order of Table 5.
 ARCHETYPES = ("anger", "sadness", "joy", "disgust", "fear", "surprise")
 
 #: Angles closer than this (degrees) count as the same wheel position.
@@ -181,7 +181,7 @@ def _comment_free(text: str) -> list[tuple[int, str]]:
 
 
 def parse_profiles(text: str, *, source: str = "<profiles>") -> ProfileSet:
-    """Parse a profile file (seed 000 figure 6.5); raise DataFileError."""
+    """Parse a profile file (Paul 2010, figure 6.5); raise DataFileError."""
     profiles: list[Profile] = []
     lines = _comment_free(text)
     if len(lines) % 2:
@@ -356,7 +356,7 @@ def format_vocabulary(words: Mapping[str, EmotionWord]) -> str:
 def same_category(
     profile: Mapping[int, FapRange], a_archetype: float, a_emotion: float
 ) -> RangeMap:
-    """Seed 001 section 4.1: every range scaled by ``a_I / a_A``."""
+    """Raouzaiou et al. 2002, section 4.1: every range scaled by ``a_I / a_A``."""
     ratio = a_emotion / a_archetype
     return {fap: rng.scaled(ratio) for fap, rng in profile.items()}
 
@@ -366,9 +366,9 @@ def angular_weights(
 ) -> tuple[float, float]:
     """Weights of A1's and A2's terms for an emotion at ``w_i`` between ``w1`` and ``w2``.
 
-    ``"interpolate"``: A1 weighs ``(w2 - w_i) / (w2 - w1)`` (1 on A1); seed
-    001's worked example. ``"as-printed"``: A1 weighs ``(w_i - w1) / (w2 - w1)``,
-    seed 001 equations (5)-(6) and seed 000 (6.3)-(6.4) as printed.
+    ``"interpolate"``: A1 weighs ``(w2 - w_i) / (w2 - w1)`` (1 on A1);
+    Raouzaiou et al. 2002's worked example. ``"as-printed"``: A1 weighs ``(w_i - w1) / (w2 - w1)``,
+    Raouzaiou et al. 2002, equations (5)-(6) and Paul 2010 (6.3)-(6.4) as printed.
     """
     if not w1 <= w_i <= w2 or w2 <= w1:
         raise ConversionError(f"angle {w_i} is not between {w1} and {w2}")
@@ -383,7 +383,7 @@ def angular_weights(
 def weighted_range(
     c1: float, s1: float, c2: float, s2: float, weight1: float, weight2: float
 ) -> FapRange:
-    """Seed 001 rule 2 (iii): centre and length as weighted sums of the two
+    """Raouzaiou et al. 2002, rule 2 (iii): centre and length as weighted sums of the two
     translated ranges' centres and lengths."""
     return FapRange.around(weight1 * c1 + weight2 * c2, weight1 * s1 + weight2 * s2)
 
@@ -399,7 +399,7 @@ def between_archetypes(
     w_emotion: float,
     weighting: Weighting = "interpolate",
 ) -> RangeMap:
-    """Seed 001 section 4.2, rules 1-6: the profile of an emotion at angle
+    """Raouzaiou et al. 2002, section 4.2, rules 1-6: the profile of an emotion at angle
     ``w_emotion`` (degrees) and activation ``a_emotion`` between archetype 1
     (``profile1``, activation ``a1``, angle ``w1``) and archetype 2."""
     weight1, weight2 = angular_weights(w1, w_emotion, w2, weighting)
@@ -437,7 +437,7 @@ class EmotionProfile:
         return dict(self.ranges)
 
     def configuration(self) -> FapConfiguration:
-        """The FAP values to animate: each range's midpoint (seed 001 section 6.1:
+        """The FAP values to animate: each range's midpoint (Raouzaiou et al. 2002, section 6.1:
         "The FAP values that we used are the median ones of the ranges")."""
         values = np.zeros(FAP_COUNT)
         mask = np.zeros(FAP_COUNT, dtype=bool)

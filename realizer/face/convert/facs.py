@@ -1,12 +1,12 @@
-"""FACS Action Units to MPEG-4 FAPs (seed 000 chapter 5).
+"""FACS Action Units to MPEG-4 FAPs (Paul 2010, chapter 5).
 
-The mapping file format is the one of seed 000 section 5.2 and figure 5.2: a
+The mapping file format is the one of Paul 2010, section 5.2 and figure 5.2: a
 plain text file whose significant lines are either an **AU line** (the AU
 number, optionally followed by ``L`` or ``R`` for a left- or right-side
 movement) or a **FAP line** with five fields, ``FAP au-start au-end
 fap-start fap-end``, which belongs to the last AU line above it. ``#`` starts
 a comment; blank lines are ignored. Fields may be separated by tabs (as in
-the seed) or spaces::
+the thesis) or spaces::
 
     23 L
     53 0.0 1.0 0 -300
@@ -14,7 +14,7 @@ the seed) or spaces::
     3  0.0 1.0 0 900
     4  0.5 1.0 0 -100
 
-A FAP line maps the AU's intensity linearly (seed 000 section 5.2: "AU 23
+A FAP line maps the AU's intensity linearly (Paul 2010, section 5.2: "AU 23
 ... When the AU is activated half way down its range (0.5), the FAP is
 calculated as 0 + (-300 - 0) * 0.5 = -150"): below ``au-start`` the FAP
 holds ``fap-start``, above ``au-end`` it holds ``fap-end``.
@@ -25,7 +25,7 @@ the ``L`` lines and the unsided ones (midline FAPs such as the jaw cannot be
 lateralised). Several AUs moving the same FAP add up (:func:`summed`).
 
 The default mapping (``realizer/face/data/facs/default.map``) covers every AU
-of seed 000 Appendix A; docs/facs.md says where each line comes from.
+of Paul 2010, Appendix A; docs/facs.md says where each line comes from.
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ from realizer.face.convert.errors import ConversionError, DataFileError
 #: Where the converters' data files live (package data).
 DATA_DIR = Path(__file__).resolve().parent.parent / "data"
 
-#: The sides an AU line may carry (seed 000 section 5.2); ``None`` is both.
+#: The sides an AU line may carry (Paul 2010, section 5.2); ``None`` is both.
 SIDES = ("L", "R")
 
 _ACTIVATION = re.compile(r"^\s*(?:AU)?(\d+)\s*([LRlr])?\s*(?::\s*([-+0-9.eE]+))?\s*$")
@@ -86,7 +86,7 @@ class FapInfluence:
             )
 
     def value(self, intensity: float) -> float:
-        """The FAP value at AU ``intensity`` (seed 000 section 5.2, linear)."""
+        """The FAP value at AU ``intensity`` (Paul 2010, section 5.2, linear)."""
         u = (intensity - self.au_start) / (self.au_end - self.au_start)
         u = min(1.0, max(0.0, u))
         return self.fap_start + (self.fap_end - self.fap_start) * u
@@ -223,7 +223,7 @@ def _number(value: float) -> str:
 
 
 def _au_number(value: float) -> str:
-    # the seed writes AU bounds with one decimal ("0.0 1.0"); keep exact otherwise
+    # the thesis writes AU bounds with one decimal ("0.0 1.0"); keep exact otherwise
     return f"{value:.1f}" if round(value, 1) == value else repr(value)
 
 

@@ -1,6 +1,8 @@
-"""FAP 1 (visemes) and FAP 2 (expressions) as low-level FAPs (seed 002 section 2.1).
+"""FAP 1 (visemes) and FAP 2 (expressions) as low-level FAPs.
 
-MPEG-4 defines the 15 viseme numbers by phonemes (seed 002 Table 3) and the
+Tekalp and Ostermann 2000, section 2.1.
+
+MPEG-4 defines the 15 viseme numbers by phonemes (Tekalp and Ostermann 2000, Table 3) and the
 six expressions by textual descriptions (Table 4); their shapes belong to the
 face model. The shapes of the default face are in
 ``realizer/face/data/visemes/{visemes,expressions}.txt``.
@@ -23,7 +25,7 @@ from realizer.face.convert.config import FAP_COUNT, FapConfiguration, check_fap_
 from realizer.face.convert.errors import ConversionError, DataFileError
 from realizer.face.convert.facs import DATA_DIR
 
-#: The largest viseme_blend and expression intensity (seed 002 Table 7: "+63").
+#: The largest viseme_blend and expression intensity (Tekalp and Ostermann 2000, Table 7: "+63").
 FAP12_MAX = 63
 
 
