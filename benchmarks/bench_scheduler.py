@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _timing import best_of
 
 from realizer.bml_parser import BML_NS, Block, parse_bml
-from realizer.scheduler.engines import EngineRegistry
+from realizer.engines import EngineRegistry
 from realizer.scheduler.plan import _Builder, schedule_block
 from realizer.scheduler.solver import Problem, solve
 

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from realizer.bml_parser import BmlError, Limits, ParseResult, WarningType, parse_bml
+from realizer.engines import EngineRegistry
 from realizer.errors import RealizerError
 from realizer.feedback import (
     Feedback,
@@ -39,7 +40,6 @@ from realizer.feedback import (
     sync_point_progress,
     warning,
 )
-from realizer.scheduler.engines import EngineRegistry
 from realizer.scheduler.plan import SchedulingFailed, TimedPlan, schedule_block
 
 
@@ -298,10 +298,7 @@ class Session:
         animations = [a for r in self._blocks.values() for a in r.animations]
         if not animations:
             return FapFrame.neutral(time=now)
-        limits = (
-            getattr(self.registry.engines[0], "limits", None) if self.registry.engines else None
-        )
-        values, mask = mix(animations, now, limits)
+        values, mask = mix(animations, now, self.registry.fap_limits)
         return FapFrame(np.asarray(values), np.asarray(mask), time=now)
 
     # -- internals ---------------------------------------------------------

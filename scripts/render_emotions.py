@@ -83,9 +83,9 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=256)
     args = parser.parse_args()
 
+    from realizer.engines.face import default_limits
     from realizer.face.convert.emotion import load_default_converter
     from realizer.face.deform import deform
-    from realizer.face.engine import default_limits
     from realizer.face.render import FaceRenderer, Framing
 
     face = load_face()

@@ -32,6 +32,7 @@ def main() -> None:
     parser.add_argument("--columns", type=int, default=8)
     args = parser.parse_args()
 
+    from realizer.engines.face import default_limits
     from realizer.face.convert.facs import AuKey, facs_to_faps, load_default_mapping
     from realizer.face.convert.visemes import (
         expression_faps,
@@ -41,7 +42,6 @@ def main() -> None:
     )
     from realizer.face.default import load_default_face
     from realizer.face.deform import deform
-    from realizer.face.engine import default_limits
     from realizer.face.render import FaceRenderer, Framing
 
     face = load_default_face()

@@ -48,9 +48,9 @@ def register(subparsers: Any) -> None:
 def run(args: Any) -> int:
     import dataclasses
 
+    from realizer.engines.face import parse_profile_choices
     from realizer.face.convert.emotion import load_default_converter
     from realizer.face.convert.errors import ConversionError
-    from realizer.face.engine import parse_profile_choices
 
     try:
         choices = parse_profile_choices(" ".join(args.profile))

@@ -41,9 +41,9 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from realizer.face.animation import Animation
 from realizer.face.convert.config import FAP_COUNT, FapConfiguration
 from realizer.face.convert.errors import ConversionError
-from realizer.scheduler.engines import Animation
 
 CurveKind = Literal["linear", "hermite", "triangular"]
 Blend = Literal["add", "replace"]

@@ -25,9 +25,9 @@ from __future__ import annotations
 import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from realizer.bml_parser import Behaviour, Block, BmlWarning, SyncRef, WarningType
-from realizer.scheduler.engines import EngineRegistry
 from realizer.scheduler.solver import (
     BLOCK_START,
     Infeasible,
@@ -38,6 +38,23 @@ from realizer.scheduler.solver import (
     solve,
 )
 from realizer.scheduler.timing import TimingModel, TimingModelError
+
+
+class Planner(Protocol):
+    """Where the scheduler gets timing models (the engines' registry, above it).
+
+    The scheduler imports no engine (docs/architecture.md): the caller hands
+    it a planner, usually :class:`realizer.engines.EngineRegistry`.
+    """
+
+    def plan(self, behaviour: Behaviour) -> TimingModel:
+        """The behaviour's model; may raise :class:`TimingModelError`."""
+        ...
+
+    def plan_plain(self, behaviour: Behaviour) -> TimingModel:
+        """A plain model for a behaviour whose own engine cannot plan it."""
+        ...
+
 
 #: A sync point of any block: (block id, behaviour id, sync name).
 GlobalKey = tuple[str, str, str]
@@ -221,8 +238,8 @@ def _sync_name(ref: SyncRef) -> str:
 def schedule_block(
     block: Block,
     *,
+    registry: Planner,
     start: float = 0.0,
-    registry: EngineRegistry | None = None,
     dropped: frozenset[str] = frozenset(),
     external: Mapping[GlobalKey, float] | None = None,
     fixed: Mapping[Key, float] | None = None,
@@ -230,13 +247,13 @@ def schedule_block(
 ) -> TimedPlan:
     """Solve one block whose start is ``start`` (global seconds).
 
+    ``registry`` gives each behaviour's timing model (see :class:`Planner`);
     ``dropped`` are behaviours the parser already ruled out; ``external``
     gives global times of sync points of other blocks for cross-block
     references; ``fixed`` pins sync points of this block already consumed
     by time (global seconds). Raises :class:`SchedulingFailed` when a
     required part cannot be met.
     """
-    registry = registry or EngineRegistry.standard()
     notes: list[BmlWarning] = list(warnings)
     models: dict[str, TimingModel] = {}
     unrealized: set[str] = set()
@@ -249,7 +266,7 @@ def schedule_block(
             # Nothing is lost: the behaviour keeps its place in the schedule
             # and its feedback (the corpus's testhead_selftimed.xml times a
             # head with lexeme "Y"), but no engine animates it.
-            models[behaviour.id] = registry.default.plan(behaviour)
+            models[behaviour.id] = registry.plan_plain(behaviour)
             unrealized.add(behaviour.id)
             notes.append(
                 BmlWarning(

@@ -10,6 +10,7 @@ import pytest
 
 from realizer.bml_parser import parse_bml
 from realizer.cli import main
+from realizer.engines import EngineRegistry
 from realizer.scheduler.plan import schedule_block
 from tests.conftest import EXAMPLES
 
@@ -48,7 +49,9 @@ def test_json_has_exactly_the_documented_keys(capsys: pytest.CaptureFixture[str]
 
 
 def test_json_times_match_schedule_block(capsys: pytest.CaptureFixture[str]) -> None:
-    expected = schedule_block(parse_bml(CONSTRAINTS.read_bytes()).block, start=0.0)
+    expected = schedule_block(
+        parse_bml(CONSTRAINTS.read_bytes()).block, registry=EngineRegistry.standard(), start=0.0
+    )
     _, document, _ = schedule_json(capsys, CONSTRAINTS)
     (block,) = document["blocks"]
     assert block["start"] == pytest.approx(expected.start)

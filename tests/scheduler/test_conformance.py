@@ -19,7 +19,7 @@ import re
 import pytest
 
 from realizer.bml_parser import BmlError, WarningType, parse_bml
-from realizer.scheduler.engines import EngineRegistry
+from realizer.engines import EngineRegistry
 from realizer.scheduler.plan import SchedulingFailed, TimedPlan, schedule_block
 from tests.conftest import conformance_files
 

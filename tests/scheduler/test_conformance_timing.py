@@ -14,10 +14,12 @@ from pathlib import Path
 import pytest
 
 from realizer.bml_parser import WarningType, parse_bml
+from realizer.engines import EngineRegistry
 from realizer.scheduler.plan import schedule_block
 from tests.bml_parser.test_conformance import REJECTED, header, header_section
 from tests.conftest import conformance_files
 
+REGISTRY = EngineRegistry.standard()
 FILES = [p for p in conformance_files() if p.name not in REJECTED]
 if not FILES:
     pytest.skip("conformance corpus not available", allow_module_level=True)
@@ -98,7 +100,9 @@ def test_the_corpus_has_many_documents_with_required_timing() -> None:
 @pytest.mark.parametrize("path", TIMED, ids=lambda p: p.name)
 def test_schedule_meets_the_required_timing(path: Path) -> None:
     result = parse_bml(path.read_bytes(), source=path.name)
-    plan = schedule_block(result.block, dropped=result.dropped, warnings=result.warnings)
+    plan = schedule_block(
+        result.block, registry=REGISTRY, dropped=result.dropped, warnings=result.warnings
+    )
     times = {(s.id, sync): t for s in plan.behaviours for sync, t in s.times.items()}
     checked = 0
     for line in timing_lines(path):
@@ -122,7 +126,9 @@ def test_schedule_meets_the_required_timing(path: Path) -> None:
 def test_behaviours_whose_timing_is_impossible_are_removed_with_a_warning(name: str) -> None:
     path = next(p for p in FILES if p.name == name)
     result = parse_bml(path.read_bytes(), source=name)
-    plan = schedule_block(result.block, dropped=result.dropped, warnings=result.warnings)
+    plan = schedule_block(
+        result.block, registry=REGISTRY, dropped=result.dropped, warnings=result.warnings
+    )
     assert plan.behaviours == ()
     assert plan.dropped == {"speech1"} or plan.dropped == {"nod1"}
     assert [w.type for w in plan.warnings] == [WarningType.IMPOSSIBLE_TO_SCHEDULE]
@@ -145,7 +151,7 @@ def test_the_corpus_names_its_impossible_timings() -> None:
 def test_references_to_unknown_targets_are_warned_about(name: str, missing: str) -> None:
     path = next(p for p in FILES if p.name == name)
     result = parse_bml(path.read_bytes(), source=name)
-    plan = schedule_block(result.block)
+    plan = schedule_block(result.block, registry=REGISTRY)
     (note,) = plan.warnings
     assert note.type is WarningType.NO_SUCH_TARGET
     assert missing in note.message
@@ -155,6 +161,6 @@ def test_references_to_unknown_targets_are_warned_about(name: str, missing: str)
 def test_required_timing_is_met_in_the_required_variant_too() -> None:
     path = next(p for p in FILES if p.name == "testspeech_synctimed2x_required.xml")
     result = parse_bml(path.read_bytes())
-    plan = schedule_block(result.block)
+    plan = schedule_block(result.block, registry=REGISTRY)
     assert plan.time_of("speech1", "s1") == pytest.approx(10.0, abs=1e-6)
     assert plan.time_of("speech2", "s1") == pytest.approx(20.0, abs=1e-6)

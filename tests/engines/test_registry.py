@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from realizer.bml_parser import BML_NS, EXT_NS, REALIZER_NS, Behaviour, parse_bml
-from realizer.scheduler.engines import DefaultEngine, EngineRegistry
+from realizer.engines import DefaultEngine, EngineRegistry
+from realizer.engines.speech import SpeechEngine
 from realizer.scheduler.plan import schedule_block
 from realizer.scheduler.timing import Phase, TimingModel
 from realizer.session import Session
@@ -86,12 +87,12 @@ def test_a_block_of_every_type_schedules_without_warnings() -> None:
             assert scheduled.times[sync] - start == pytest.approx(offset, abs=1e-9)
 
 
-def test_the_default_engine_stretches_speech_reluctantly() -> None:
+def test_the_speech_engine_stretches_speech_reluctantly() -> None:
     speech = behaviours()["speech1"]
     gesture = behaviours()["gesture1"]
-    engine = DefaultEngine()
+    engine = SpeechEngine()
     speech_weight = min(p.weight for p in engine.plan(speech).phases)
-    gesture_weight = max(p.weight for p in engine.plan(gesture).phases)
+    gesture_weight = max(p.weight for p in DefaultEngine().plan(gesture).phases)
     assert speech_weight > gesture_weight
     for phase in engine.plan(speech).phases:
         assert phase.minimum == pytest.approx(0.6 * phase.preferred)

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from realizer.bml_parser import Behaviour, parse_bml
+from realizer.engines.face import FaceEngine, parse_profile_choices
 from realizer.face.convert.emotion import load_default_converter
 from realizer.face.convert.errors import ConversionError
 from realizer.face.convert.facs import facs_to_faps
 from realizer.face.convert.lexemes import lexeme_faps
 from realizer.face.convert.visemes import expression_faps, viseme_faps
-from realizer.face.engine import FaceEngine, parse_profile_choices
 from realizer.face.tracks import Envelope, FapAnimation, mix
 
 HEAD = ("start", "ready", "strokeStart", "stroke", "strokeEnd", "relax", "end")
@@ -178,7 +178,7 @@ def test_profile_choices_parse() -> None:
 
 
 def test_default_limits_come_from_the_fap_table_of_seed_002() -> None:
-    from realizer.face.engine import default_limits
+    from realizer.engines.face import default_limits
 
     limits = default_limits()
     assert (limits.lower[2], limits.upper[2]) == (0.0, 4320.0)  # open_jaw: U, 1080 * QP 4

@@ -7,9 +7,10 @@ from dataclasses import dataclass
 import pytest
 
 from realizer.bml_parser import BML_NS, SpeechText, parse_bml
-from realizer.scheduler.engines import DefaultEngine, EngineRegistry
+from realizer.engines import EngineRegistry
+from realizer.engines.speech import SpeechEngine
+from realizer.engines.speech.timing import RateSpeechTiming, SpeechPlan, syllables
 from realizer.scheduler.plan import schedule_block
-from realizer.scheduler.speech import RateSpeechTiming, SpeechPlan, syllables
 
 
 def speech_text(inner: str) -> SpeechText:
@@ -97,7 +98,7 @@ def test_a_real_tts_replaces_the_model_through_the_engine() -> None:
         f'<bml xmlns="{BML_NS}" id="b"><speech id="s"><text>{TEXT}</text></speech>'
         '<head id="nod1" lexeme="NOD" stroke="s:c"/></bml>'
     ).block
-    registry = EngineRegistry(default=DefaultEngine(speech=FixedTts()))
+    registry = EngineRegistry([SpeechEngine(timing=FixedTts())])
     plan = schedule_block(block, registry=registry)
     assert plan.time_of("s", "a") == pytest.approx(1.0)
     assert plan.time_of("s", "c") == pytest.approx(3.0)
