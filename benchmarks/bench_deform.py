@@ -33,9 +33,30 @@ def _default_face() -> Face | None:
 def _frames() -> dict[str, np.ndarray]:
     talking = np.zeros(68)
     for number, value in {
-        3: 250, 4: 60, 5: -80, 51: 50, 52: -90, 53: 120, 54: 120, 59: 60, 60: 60,
-        12: 40, 13: 40, 31: 150, 32: 150, 33: 120, 34: 120, 19: 200, 20: 200,
-        23: 3000, 24: 3000, 25: -1500, 26: -1500, 48: 2000, 49: -3000, 50: 800,
+        3: 250,
+        4: 60,
+        5: -80,
+        51: 50,
+        52: -90,
+        53: 120,
+        54: 120,
+        59: 60,
+        60: 60,
+        12: 40,
+        13: 40,
+        31: 150,
+        32: 150,
+        33: 120,
+        34: 120,
+        19: 200,
+        20: 200,
+        23: 3000,
+        24: 3000,
+        25: -1500,
+        26: -1500,
+        48: 2000,
+        49: -3000,
+        50: 800,
     }.items():
         talking[number - 1] = value
     every = np.zeros(68)
@@ -72,10 +93,14 @@ def run(quick: bool = False) -> None:
     heads.append(subdivide_face(test_head, 2))
     print(f"subdivided the test head in {time.perf_counter() - start:.2f} s")
     frames = _frames()
-    print("best of repeats; deform = full result; "
-          "posed = deform_posed (vertices + 4x4 head pose for the GPU)")
-    print(f"{'head':<22}{'vertices':>10}{'frame':>11}{'fps':>9}{'ms':>8}{'x copy':>8}"
-          f"{'posed ms':>10}{'x copy':>8}{'copy ms':>9}")
+    print(
+        "best of repeats; deform = full result; "
+        "posed = deform_posed (vertices + 4x4 head pose for the GPU)"
+    )
+    print(
+        f"{'head':<22}{'vertices':>10}{'frame':>11}{'fps':>9}{'ms':>8}{'x copy':>8}"
+        f"{'posed ms':>10}{'x copy':>8}{'copy ms':>9}"
+    )
     for face in heads:
         start = time.perf_counter()
         rig_for(face)

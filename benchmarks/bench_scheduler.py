@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _timing import best_of
+from _timing import best_of, figure
 
 from realizer.bml_parser import BML_NS, Block, parse_bml
 from realizer.engines import EngineRegistry
@@ -42,7 +42,11 @@ from realizer.scheduler.plan import _Builder, schedule_block
 from realizer.scheduler.solver import Problem, solve
 
 #: The goal for a block of 1,000 behaviours with cycles (seconds).
-GOAL = 0.020
+GOAL = 0.010
+#: The goal for a block of 1 to 10 behaviours (seconds): microseconds, not milliseconds.
+SMALL_GOAL = 100e-6
+#: The small sizes timed against :data:`SMALL_GOAL`.
+SMALL_SIZES = (1, 2, 3, 6, 10)
 UNIT = 6
 
 
@@ -166,10 +170,32 @@ def run(quick: bool = False) -> None:
         results[orderings] = measure(title, sizes, orderings, registry, quick)
     for orderings, label in ((True, "with active <after>"), (False, "without inequalities")):
         t_plan, t_solve = results[orderings][1000]
-        print(
-            f"1,000 behaviours with cycles, {label}: schedule_block {t_plan * 1e3:.1f} ms, "
-            f"solve {t_solve * 1e3:.1f} ms; goal {GOAL * 1e3:.0f} ms, "
-            f"ratio schedule_block/goal {t_plan / GOAL:.2f}"
+        figure(
+            f"1,000 behaviours with cycles, {label}: schedule_block",
+            t_plan * 1e3,
+            "ms",
+            goal=GOAL * 1e3,
+            note=f"solve alone {t_solve * 1e3:.2f} ms",
+        )
+    small(registry, quick)
+
+
+def small(registry: EngineRegistry, quick: bool) -> None:
+    """Time schedule_block on blocks of 1 to 10 behaviours against :data:`SMALL_GOAL`."""
+    print("small blocks (the same rings, chains and <after>; 1 behaviour: one face lexeme)")
+    for size in SMALL_SIZES:
+        block = parse_bml(generated_block(size)).block
+
+        def plan_it(block: Block = block) -> None:
+            schedule_block(block, registry=registry)
+
+        plan_it()
+        seconds = best_of(plan_it, repeats=5 if quick else 9, number=50 if quick else 200)
+        figure(
+            f"schedule_block, {size} behaviour{'s' if size > 1 else ''}",
+            seconds * 1e6,
+            "us",
+            goal=SMALL_GOAL * 1e6,
         )
 
 
