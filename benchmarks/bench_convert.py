@@ -7,10 +7,15 @@ never asserted.
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _timing import figure
 
 
 def _per_call(function: Callable[[], object], repeats: int) -> float:
@@ -37,7 +42,7 @@ def run(quick: bool = False) -> None:
         "emotion wheel point": _per_call(lambda: converter.for_point(261.0, 3.8), repeats),
     }
     for name, seconds in figures.items():
-        print(f"{name:<28} {seconds * 1e6:9.1f} us per call")
+        figure(name, seconds * 1e6, "us per call")
 
     for count in (4, 16, 64):
         animations = [
@@ -47,9 +52,11 @@ def run(quick: bool = False) -> None:
             for i in range(count)
         ]
         per_frame = _per_call(lambda a=animations: mix(a, 2.0), repeats // 4)
-        print(
-            f"mix {count:>2} animations          {per_frame * 1e6:9.1f} us per frame "
-            f"({1 / per_frame / 25:,.0f}x a 25 fps stream)"
+        figure(
+            f"mix {count} animations",
+            per_frame * 1e6,
+            "us per frame",
+            note=f"{1 / per_frame / 25:,.0f}x a 25 fps stream",
         )
 
     frames = 250 if quick else 2500

@@ -11,14 +11,19 @@ nothing about time.
 from __future__ import annotations
 
 import importlib
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
 from realizer.face.deform import deform, rig_for
 from realizer.face.model import Face
 from realizer.face.testhead import build_test_head, subdivide_face
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _timing import figure
 
 
 def _default_face() -> Face | None:
@@ -114,6 +119,13 @@ def run(quick: bool = False) -> None:
                 f"{face.name:<22}{face.vertex_count:>10}{name:>11}{1 / per_frame:>9.0f}"
                 f"{per_frame * 1e3:>8.3f}{per_frame / copy_s:>8.1f}"
                 f"{posed * 1e3:>10.3f}{posed / copy_s:>8.1f}{copy_s * 1e3:>9.3f}"
+            )
+            figure(
+                f"{face.name} ({face.vertex_count} vertices), {name}: deform / vertex copy",
+                per_frame / copy_s,
+                "x",
+                goal=3.0,
+                quiet=True,
             )
         print(f"{'':<22}rig built in {build * 1e3:.0f} ms")
 

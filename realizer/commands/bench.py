@@ -115,6 +115,6 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.flush()
     if args.json is not None:
         report["machine"]["loadavg_after"] = list(os.getloadavg())
-        args.json.write_text(json.dumps(report, indent=1, allow_nan=True) + "\n")
+        args.json.write_text(json.dumps(report, indent=1, allow_nan=False) + "\n")
         print(f"wrote {args.json}")
     return 0

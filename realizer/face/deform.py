@@ -220,7 +220,11 @@ class _Entries:
 
     @classmethod
     def of(
-        cls, rows: np.ndarray, column: np.ndarray, coef: np.ndarray, mag: np.ndarray,
+        cls,
+        rows: np.ndarray,
+        column: np.ndarray,
+        coef: np.ndarray,
+        mag: np.ndarray,
         columns: int,
     ) -> _Entries:
         pointer = np.searchsorted(column, np.arange(columns + 1))
@@ -256,9 +260,15 @@ def _rotation(axis: tuple[float, float, float], angle: float) -> Matrix3:
     c, s = math.cos(angle), math.sin(angle)
     t = 1.0 - c
     return (
-        c + t * x * x, t * x * y - s * z, t * x * z + s * y,
-        t * x * y + s * z, c + t * y * y, t * y * z - s * x,
-        t * x * z - s * y, t * y * z + s * x, c + t * z * z,
+        c + t * x * x,
+        t * x * y - s * z,
+        t * x * z + s * y,
+        t * x * y + s * z,
+        c + t * y * y,
+        t * y * z - s * x,
+        t * x * z - s * y,
+        t * y * z + s * x,
+        c + t * z * z,
     )
 
 
@@ -522,8 +532,11 @@ class FaceRig:
         single = reached == 1
         order = np.argsort(column[single], kind="stable")
         self._single = _Entries.of(
-            flat[single][order], column[single][order], signed[single][order],
-            mag[single][order], columns,
+            flat[single][order],
+            column[single][order],
+            signed[single][order],
+            mag[single][order],
+            columns,
         )
         # rows reached by several deformers: the capped sums of the module docstring
         multi = ~single
@@ -576,8 +589,12 @@ class FaceRig:
             if groups and transform.key == last_key:
                 group = groups[-1]
                 groups[-1] = _TransformGroup(
-                    group.indices, (*group.members, transform), group.flat, group.blend_flat,
-                    group.blend, group.weights,
+                    group.indices,
+                    (*group.members, transform),
+                    group.flat,
+                    group.blend_flat,
+                    group.blend,
+                    group.weights,
                 )
                 continue
             blend = blend_weights = None
@@ -594,12 +611,16 @@ class FaceRig:
             elif vertices.size and int(vertices[-1]) - int(vertices[0]) + 1 == vertices.size:
                 # a contiguous part: a view instead of a gather and a scatter
                 indices = slice(int(vertices[0]), int(vertices[-1]) + 1)
-            groups.append(_TransformGroup(
-                indices, (transform,),
-                _flat(vertices) if isinstance(indices, np.ndarray) else None,
-                None if blend is None else _flat(blend),
-                blend, blend_weights,
-            ))
+            groups.append(
+                _TransformGroup(
+                    indices,
+                    (transform,),
+                    _flat(vertices) if isinstance(indices, np.ndarray) else None,
+                    None if blend is None else _flat(blend),
+                    blend,
+                    blend_weights,
+                )
+            )
             last_key = transform.key
         # the trailing rigid motions of every vertex (the head) form the pose
         split = len(groups)
@@ -692,8 +713,7 @@ class FaceRig:
             moved = True
             ax, ay, az = member.axis_tuple
             if member.kind == "translation":
-                offset = (offset[0] + amount * ax, offset[1] + amount * ay,
-                          offset[2] + amount * az)
+                offset = (offset[0] + amount * ax, offset[1] + amount * ay, offset[2] + amount * az)
             else:
                 rot = _rotation(member.axis_tuple, amount)
                 matrix = _mul(rot, matrix)

@@ -412,8 +412,9 @@ def subdivide_face(face: Face, times: int = 1) -> Face:
     faces = np.asarray(face.faces)
     n = len(vertices)
     groups: dict[str, np.ndarray] = {f"part:{k}": v for k, v in face.parts.items()}
-    groups.update({f"mask:{k}": np.asarray(v, dtype=np.int64)
-                   for k, v in face.params.vertex_masks.items()})
+    groups.update(
+        {f"mask:{k}": np.asarray(v, dtype=np.int64) for k, v in face.params.vertex_masks.items()}
+    )
     keys = list(groups)
     for _ in range(times):
         member = np.zeros((len(vertices), len(keys)))
@@ -438,12 +439,13 @@ def subdivide_face(face: Face, times: int = 1) -> Face:
     faces = new_index[faces]
     groups = {key: np.sort(new_index[value]) for key, value in groups.items()}
     parts = {k[5:]: v for k, v in groups.items() if k.startswith("part:")}
-    masks = {int(k[5:]): tuple(int(i) for i in v) for k, v in groups.items()
-             if k.startswith("mask:")}
+    masks = {
+        int(k[5:]): tuple(int(i) for i in v) for k, v in groups.items() if k.startswith("mask:")
+    }
     params = FaceParameters(
         feature_points=face.params.feature_points,
         keep_syncs=face.params.keep_syncs,
         deformers=face.params.deformers,
         vertex_masks=masks,
     )
-    return Face(vertices, faces, parts, params, name=f"{face.name}-x{4 ** times}")
+    return Face(vertices, faces, parts, params, name=f"{face.name}-x{4**times}")

@@ -106,10 +106,12 @@ THREE = {56: 100.0, 51: 100.0, 55: 100.0}
 
 def seed_000_average(face, values: dict[int, float]) -> np.ndarray:
     """FaceEditor's rule (seed 000 §4.3.1): average the displacements a vertex gets."""
-    singles = np.stack([
-        (deform(face, fap_vector({number: value})) - face.vertices).astype(np.float64)
-        for number, value in values.items()
-    ])
+    singles = np.stack(
+        [
+            (deform(face, fap_vector({number: value})) - face.vertices).astype(np.float64)
+            for number, value in values.items()
+        ]
+    )
     reached = np.any(singles != 0, axis=2).sum(axis=0)
     total = singles.sum(axis=0)
     return total / np.maximum(reached, 1)[:, None] / UNIT_M

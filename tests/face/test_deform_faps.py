@@ -47,8 +47,7 @@ def test_every_fap_from_3_to_68_moves_the_test_head():
 # both signs where the FAP is bidirectional; negative unidirectional values are
 # clamped (tested below)
 CASES = [
-    (n, v) for n in TRANSLATIONAL for v in (250.0, -250.0)
-    if v > 0 or FAP_TABLE[n].bidirectional
+    (n, v) for n in TRANSLATIONAL for v in (250.0, -250.0) if v > 0 or FAP_TABLE[n].bidirectional
 ]
 
 
@@ -274,10 +273,15 @@ def test_a_head_falloff_bends_the_neck_below_the_pivot():
     vertices = np.zeros((count, 3), dtype=np.float32)
     vertices[:, 0] = 0.01
     vertices[:, 1] = (np.arange(count) - 30) * 0.001  # -30 mm .. +29 mm
-    yaw = TransformDeformer(49, ("all",), "rotation", (0.0, 1.0, 0.0), pivot=(0.0, 0.0, 0.0),
-                            falloff=0.02)
-    face = Face(vertices, np.zeros((0, 3), np.int32), {"skin": np.arange(count)},
-                FaceParameters(dict(FAPU_POINTS), (), (yaw,), {}))
+    yaw = TransformDeformer(
+        49, ("all",), "rotation", (0.0, 1.0, 0.0), pivot=(0.0, 0.0, 0.0), falloff=0.02
+    )
+    face = Face(
+        vertices,
+        np.zeros((0, 3), np.int32),
+        {"skin": np.arange(count)},
+        FaceParameters(dict(FAPU_POINTS), (), (yaw,), {}),
+    )
     out = deform(face, fap_vector({49: 10000.0})).astype(np.float64)  # 0.1 rad
     rigid = np.array([0.01 * np.cos(0.1), 0.0, -0.01 * np.sin(0.1)])
     offset = out - face.vertices

@@ -144,8 +144,9 @@ def test_a_point_deformer_moves_only_the_feature_point_vertex():
 
 def test_only_the_named_part_moves():
     parts = {"skin": np.arange(0, 5), "tongue": np.arange(5, 60)}
-    face = line_face((EaseDeformer(4, DOWN, SIZE, part="tongue", feature_point="2.2"),),
-                     parts=parts)
+    face = line_face(
+        (EaseDeformer(4, DOWN, SIZE, part="tongue", feature_point="2.2"),), parts=parts
+    )
     assert set(np.flatnonzero(drop(face))) == set(range(5, 10))
 
 

@@ -92,8 +92,14 @@ def test_changes_are_merged_and_unknown_parts_survive():
     assert again.keep_syncs == (19, 20)
     assert again.feature_points["9.15"] == (0.0, -0.03, 0.1)
     text = saved.decode()
-    for kept in ('colour="red"', "muscle-deformer", "x:extra", "the top middle lip",
-                 'x:note="pupil"', 'version="2"'):
+    for kept in (
+        'colour="red"',
+        "muscle-deformer",
+        "x:extra",
+        "the top middle lip",
+        'x:note="pupil"',
+        'version="2"',
+    ):
         assert kept in text
     # untouched elements keep their text exactly
     assert 'smooth-center="50" smooth-side="25"' in text
@@ -140,12 +146,21 @@ def test_a_saved_face_deforms_like_the_original(tmp_path: Path):
     [
         (b"<faceeditor-parameters><fp-positions>", "well-formed"),
         (b"<parameters/>", "root"),
-        (b"<faceeditor-parameters><deformers>\n<ease-deformer fap='4' x='0' y='-1' z='0'/>"
-         b"</deformers></faceeditor-parameters>", "line 2.*size"),
-        (b"<faceeditor-parameters><deformers><deformer fap='4' x='a' y='0' z='0'/>"
-         b"</deformers></faceeditor-parameters>", "not a number"),
-        (b"<faceeditor-parameters><vertex-masks><vertex-mask fap='4'>1 two</vertex-mask>"
-         b"</vertex-masks></faceeditor-parameters>", "integers"),
+        (
+            b"<faceeditor-parameters><deformers>\n<ease-deformer fap='4' x='0' y='-1' z='0'/>"
+            b"</deformers></faceeditor-parameters>",
+            "line 2.*size",
+        ),
+        (
+            b"<faceeditor-parameters><deformers><deformer fap='4' x='a' y='0' z='0'/>"
+            b"</deformers></faceeditor-parameters>",
+            "not a number",
+        ),
+        (
+            b"<faceeditor-parameters><vertex-masks><vertex-mask fap='4'>1 two</vertex-mask>"
+            b"</vertex-masks></faceeditor-parameters>",
+            "integers",
+        ),
     ],
 )
 def test_bad_files_are_reported(text, message):

@@ -12,8 +12,16 @@ HEAD = build_test_head()
 
 
 def test_it_has_the_named_parts():
-    for part in ("skin", "left_eye", "right_eye", "left_pupil", "right_pupil",
-                 "upper_teeth", "lower_teeth", "tongue"):
+    for part in (
+        "skin",
+        "left_eye",
+        "right_eye",
+        "left_pupil",
+        "right_pupil",
+        "upper_teeth",
+        "lower_teeth",
+        "tongue",
+    ):
         assert HEAD.part(part).size > 0
     assert HEAD.part("eyes").size == HEAD.part("left_eye").size + HEAD.part("right_eye").size
 
@@ -26,8 +34,15 @@ def test_every_fap_driven_feature_point_is_a_vertex():
 
 
 def test_the_left_side_is_plus_x():
-    for left, right in (("3.5", "3.6"), ("8.3", "8.4"), ("2.4", "2.5"), ("10.1", "10.2"),
-                        ("4.1", "4.2"), ("6.3", "6.4"), ("9.1", "9.2")):
+    for left, right in (
+        ("3.5", "3.6"),
+        ("8.3", "8.4"),
+        ("2.4", "2.5"),
+        ("10.1", "10.2"),
+        ("4.1", "4.2"),
+        ("6.3", "6.4"),
+        ("9.1", "9.2"),
+    ):
         assert HEAD.feature_position(left)[0] > 0 > HEAD.feature_position(right)[0]
 
 
