@@ -3,7 +3,14 @@
 Each sub-command lives in its own module under :mod:`realizer.commands` and
 exposes ``register(subparsers)``; the module imports its heavy dependencies
 only inside its run function, so ``realizer parse`` never loads OpenGL.
-To add a command, write the module and add its name to :data:`COMMANDS`.
+To add a command, write the module, add its name to :data:`COMMANDS` and its
+one-line help to :data:`SUMMARIES`.
+
+Start-up: only the module of the command being run is imported. Every other
+command is listed by ``--help`` from :data:`SUMMARIES` without importing its
+module, so ``realizer --help`` imports no command module at all and costs
+little more than the interpreter's start (``realizer bench startup``; a test
+pins that it imports no numpy, scipy or lxml).
 """
 
 from __future__ import annotations
@@ -32,8 +39,42 @@ COMMANDS: tuple[str, ...] = (
     "bench",
 )
 
+#: The ``help`` each command's ``register`` gives, by command name (a module's
+#: name with ``-`` for ``_``): ``--help`` lists a command from here without
+#: importing its module. A command missing here is imported to be listed
+#: (correct, only slower); a test checks each entry against its module.
+SUMMARIES: dict[str, str] = {
+    "parse": "parse BML files and print their behaviours",
+    "schedule": "solve BML blocks and print every sync point's time",
+    "plot": "draw a scheduled BML block as a Gantt chart",
+    "render": "render a BML block offscreen to a video or PNG files",
+    "serve": "run the real-time BML service (WebSocket + browser viewer)",
+    "send": "send a BML file to a running service and print its feedback",
+    "face": "render one FAP pose of a face to a PNG",
+    "fap-sheet": "render every FAP 3..68 of a face on one contact sheet (PNG)",
+    "facs": "print the FAP values of FACS Action Units",
+    "emotion": "print the FAP profile of an emotion",
+    "faps": "write a BML block's FAP stream to a .fap file",
+    "plot-faps": "plot a BML block's FAP curves with its sync points",
+    "bench": "run benchmarks and print figures and ratios",
+}
 
-def build_parser() -> argparse.ArgumentParser:
+
+def _chosen(argv: Sequence[str]) -> str | None:
+    """The command named on the command line: the first word that is not an option
+    (the top-level options, ``--help`` and ``--version``, take no value)."""
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word
+    return None
+
+
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The whole command line; given the ``argv`` it will parse, only the module of
+    the command in it is imported (``None``: every command's module)."""
+    chosen = None if argv is None else _chosen(argv)
     parser = argparse.ArgumentParser(
         prog="realizer",
         description="A real-time BML 1.0 realizer with MPEG-4 facial animation.",
@@ -41,15 +82,21 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"realizer {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
-        module = importlib.import_module(f"realizer.commands.{name}")
-        module.register(subparsers)
+        command = name.replace("_", "-")
+        summary = SUMMARIES.get(command)
+        if argv is None or command == chosen or summary is None:
+            module = importlib.import_module(f"realizer.commands.{name}")
+            module.register(subparsers)
+        else:
+            subparsers.add_parser(command, help=summary)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the process exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(words)
+    args = parser.parse_args(words)
     if args.command is None:
         parser.print_help()
         return 2

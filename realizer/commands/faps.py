@@ -13,10 +13,11 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-import numpy.typing as npt
+if TYPE_CHECKING:  # numpy is imported when a recording is made, not by `realizer --help`
+    import numpy as np
+    import numpy.typing as npt
 
 
 def register(subparsers: Any) -> None:
@@ -57,6 +58,8 @@ def _feedback_id(xml: str) -> str:
 
 def record_block(text: str | bytes, fps: float, max_seconds: float) -> BlockRecording:
     """Play ``text`` in a fresh session from time 0 (see the module docstring)."""
+    import numpy as np
+
     from realizer.session import Session
 
     if not fps > 0:
