@@ -468,7 +468,7 @@ DESCRIPTIONS = {
     "delivery": "frame due -> received",
     "accepted": "BML sent -> accepted",
 }
-#: Goals of issue 13 (ms), by (viewer format, characters, viewers). Delivery
+#: The real-time goals (ms; docs/performance.md), by (viewer format, characters, viewers). Delivery
 #: here is measured at the client, so it bounds "due -> written" from above.
 GOALS: dict[tuple[str, int, int], dict[str, float]] = {
     ("fap", 10, 100): {"latency": 1000 / FPS + 2.0, "delivery": 2.0, "accepted": 3.0},

@@ -2,7 +2,7 @@
 
 Runs ``python -m realizer --help`` (and, for comparison, ``python -c pass``
 and ``realizer parse --help``) as fresh processes, several times, and prints
-the best and the median wall time. Goal (issue 13): ``--help`` under 50 ms.
+the best and the median wall time. Goal: ``--help`` under 50 ms.
 ``realizer --help`` imports no command module (``realizer.cli.SUMMARIES``
 lists them); what is left is the interpreter, ``site`` and ``argparse``.
 """
