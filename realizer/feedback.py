@@ -2,28 +2,48 @@
 
 The realizer tells the submitter what happens to each block (BML 1.0,
 "Feedback"; element and attribute names as the reference parser
-saiba/OpenBMLParser writes them):
+saiba/OpenBMLParser reads and writes them):
 
-* ``predictionFeedback``: the planned global times of the block and of every
-  sync point of every behaviour, once the block is scheduled;
+* ``predictionFeedback``: a ``<bml id globalStart globalEnd/>`` for the
+  block, then every scheduled behaviour as a valid BML 1.0 behaviour
+  element: its own element name (in its own namespace: ``faceFacs`` in the
+  core extensions), ``id="block:behaviour"``, its required and understood
+  attributes under their BML 1.0 names (a draft ``<head type="NOD">`` is
+  predicted as ``<head lexeme="NOD">``), and each sync point's predicted
+  global time as the value of its sync attribute; a speech keeps its
+  ``<text>`` with the ``<sync id>`` markers in text order, each marker's
+  predicted time in its ``ref``;
 * ``blockProgress``: ``id="block:start"`` and ``id="block:end"`` with a
-  ``globalTime``; an interrupted block ends with ``status="INTERRUPTED"``;
+  ``globalTime``. The BML 1.0 element has no status attribute; the block's
+  status is given the way AsapRealizer's BMLA extension defines it, as
+  ``bmla:status`` in the namespace ``http://www.asap-project.org/bmla``:
+  ``IN_EXEC`` at the start, ``DONE`` at a normal end, ``INTERRUPTED`` for a
+  block stopped while running, ``REVOKED`` for one stopped before it began;
 * ``syncPointProgress``: ``id="block:behaviour:sync"`` with the block-relative
   ``time`` and the ``globalTime`` at which time passed the sync point;
 * ``warningFeedback``: ``id`` and ``type`` (a BML 1.0 warning type) with the
   message as text.
 
 Times are seconds, written with microsecond precision.
+:func:`realizer.bml_parser.feedback.parse_feedback` reads every message back
+strictly.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cache
 from xml.sax.saxutils import escape, quoteattr
 
-from realizer.bml_parser import BML_NS
+from realizer.bml_parser import BML_NS, Behaviour, TextSync
+from realizer.bml_parser.vocabulary import BMLA_NS, prediction_element
 
 _XMLNS = f"xmlns={quoteattr(BML_NS)}"
+_BMLA = f"xmlns:bmla={quoteattr(BMLA_NS)}"
+
+#: BMLA block statuses this realizer reports (AsapRealizer's BMLABlockStatus).
+BLOCK_STATUSES = ("IN_EXEC", "DONE", "INTERRUPTED", "REVOKED", "FAILED")
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,10 +69,13 @@ def _character(character_id: str | None) -> str:
 def block_progress(
     block_id: str, which: str, global_time: float, character_id: str | None, status: str = ""
 ) -> Feedback:
-    extra = f" status={quoteattr(status)}" if status else ""
+    """``status``: one of :data:`BLOCK_STATUSES` (written as ``bmla:status``), or ``""``."""
+    if status and status not in BLOCK_STATUSES:
+        raise ValueError(f"unknown block status {status!r}")
+    extra = f" {_BMLA} bmla:status={quoteattr(status)}" if status else ""
     xml = (
-        f"<blockProgress {_XMLNS} id={quoteattr(f'{block_id}:{which}')} "
-        f'globalTime="{_t(global_time)}"{_character(character_id)}{extra}/>'
+        f"<blockProgress {_XMLNS}{extra} id={quoteattr(f'{block_id}:{which}')} "
+        f'globalTime="{_t(global_time)}"{_character(character_id)}/>'
     )
     return Feedback("blockProgress", block_id, global_time, xml)
 
@@ -84,35 +107,57 @@ def warning(
     return Feedback("warning", block_id, time, xml)
 
 
-#: Sync names that can be written as attributes of a behaviour element.
-_ATTRIBUTE_SYNCS = frozenset(
-    {"start", "ready", "strokeStart", "stroke", "strokeEnd", "relax", "end", "attackPeak"}
-)
+@cache
+def _prefix(namespace: str) -> str:
+    return {BML_NS: ""}.get(namespace, "ext" if "coreextensions" in namespace else "rf")
+
+
+def _behaviour_element(block_id: str, behaviour: Behaviour, times: Mapping[str, float]) -> str:
+    element = prediction_element(behaviour.type)
+    if element is None:  # no BML 1.0 element for it: nothing valid to predict
+        return ""
+    namespace, name, attributes = element
+    prefix = _prefix(namespace)
+    tag = f"{prefix}:{name}" if prefix else name
+    decl = f" xmlns:{prefix}={quoteattr(namespace)}" if prefix else ""
+    parts = [f"<{tag}{decl} id={quoteattr(f'{block_id}:{behaviour.id}')}"]
+    for key, value in behaviour.params:
+        if key in attributes:
+            parts.append(f" {key}={quoteattr(value)}")
+    markers = set(behaviour.speech.sync_ids) if behaviour.speech is not None else set()
+    for sync in behaviour.syncs:
+        # stroke:2.. of a repeated head have no attribute in BML 1.0; their
+        # times come with the syncPointProgress.
+        if sync in times and sync not in markers and ":" not in sync:
+            parts.append(f' {sync}="{_t(times[sync])}"')
+    if behaviour.speech is None:
+        parts.append("/>")
+        return "".join(parts)
+    parts.append("><text>")
+    for run in behaviour.speech.runs:
+        if isinstance(run, TextSync):
+            at = times.get(run.id)
+            ref = f' ref="{_t(at)}"' if at is not None else ""
+            parts.append(f"<sync id={quoteattr(run.id)}{ref}/>")
+        else:
+            parts.append(escape(run))
+    parts.append(f"</text></{tag}>")
+    return "".join(parts)
 
 
 def prediction(
     block_id: str,
     start: float,
     end: float,
-    behaviours: list[tuple[str, str, dict[str, float]]],
+    behaviours: Sequence[tuple[Behaviour, Mapping[str, float]]],
     time: float,
     character_id: str | None,
 ) -> Feedback:
-    """``behaviours``: (element name, id, sync name -> global time)."""
+    """``behaviours``: each scheduled behaviour with its sync name -> global time."""
     parts = [
         f"<predictionFeedback {_XMLNS}{_character(character_id)}>",
         f'<bml id={quoteattr(block_id)} globalStart="{_t(start)}" globalEnd="{_t(end)}"/>',
     ]
-    for element, behaviour_id, times in behaviours:
-        attrs = "".join(
-            f' {name}="{_t(value)}"' for name, value in times.items() if name in _ATTRIBUTE_SYNCS
-        )
-        others = "".join(
-            f'<sync id={quoteattr(name)} globalTime="{_t(value)}"/>'
-            for name, value in times.items()
-            if name not in _ATTRIBUTE_SYNCS
-        )
-        tag = f"<{element} id={quoteattr(behaviour_id)}{attrs}"
-        parts.append(f"{tag}>{others}</{element}>" if others else f"{tag}/>")
+    parts.extend(_behaviour_element(block_id, b, times) for b, times in behaviours)
     parts.append("</predictionFeedback>")
     return Feedback("prediction", block_id, time, "".join(parts))

@@ -90,12 +90,22 @@ class BlockLifecycle:
         return self.state
 
 
+#: A feedback event still to report: (global time, block sequence number,
+#: kind rank (0 start, 1 sync, 2 end), behaviour index in the block, sync
+#: index in the behaviour's canonical order, kind, behaviour id, sync name).
+#: Sorting by the tuple gives the documented same-instant order: time, then
+#: the order blocks arrived in (so a block's end comes before the start of
+#: the block appended after it), then block start, sync points (behaviours
+#: in document order, each in its canonical order), block end.
+_Event = tuple[float, int, int, int, int, str, str, str]
+
+
 @dataclass(slots=True)
 class _Record:
     plan: TimedPlan
     lifecycle: BlockLifecycle
-    # (global time, order, kind, behaviour id, sync) still to report
-    events: deque[tuple[float, int, str, str, str]]
+    # still to report, in the order of :data:`_Event`'s rank
+    events: deque[_Event]
     animations: list[Any] = field(default_factory=list)
 
 
@@ -223,16 +233,22 @@ class Session:
                 block.id,
                 plan.start,
                 plan.end,
-                [(s.behaviour.local_name, s.id, s.times) for s in plan.behaviours],
+                [(s.behaviour, s.times) for s in plan.behaviours],
                 now,
                 self.character_id,
             )
         )
-        events: list[tuple[float, int, str, str, str]] = [(plan.start, 0, "start", "", "")]
-        for scheduled in plan.behaviours:
+        self._order += 1
+        seq = self._order
+        # Equal instants are equal as the feedback writes them (microseconds),
+        # not as the solver's floating point happens to leave them.
+        events: list[_Event] = [(round(plan.start, 6), seq, 0, 0, 0, "start", "", "")]
+        for index, scheduled in enumerate(plan.behaviours):
+            canonical = scheduled.behaviour.syncs
             for sync, time in scheduled.times.items():
-                events.append((time, 1, "sync", scheduled.id, sync))
-        events.append((plan.end, 2, "end", "", ""))
+                rank = canonical.index(sync) if sync in canonical else len(canonical)
+                events.append((round(time, 6), seq, 1, index, rank, "sync", scheduled.id, sync))
+        events.append((round(plan.end, 6), seq, 2, 0, 0, "end", "", ""))
         events.sort()
         animations = []
         for scheduled in plan.behaviours:
@@ -274,7 +290,8 @@ class Session:
             ]
         else:
             record.animations = []
-        self._emit(block_progress(block_id, "end", now, self.character_id, "INTERRUPTED"))
+        status = "INTERRUPTED" if was_running else "REVOKED"
+        self._emit(block_progress(block_id, "end", now, self.character_id, status))
         return True
 
     def tick(self, now: float) -> None:
@@ -328,17 +345,16 @@ class Session:
                 excess -= 1
 
     def _progress(self, now: float) -> None:
-        due: list[tuple[float, int, str, str, str, str]] = []
+        due: list[tuple[_Event, str]] = []
         for block_id, record in self._blocks.items():
             while record.events and record.events[0][0] <= now + 1e-12:
-                time, order, kind, behaviour_id, sync = record.events.popleft()
-                due.append((time, order, block_id, kind, behaviour_id, sync))
+                due.append((record.events.popleft(), block_id))
         due.sort()
-        for time, _, block_id, kind, behaviour_id, sync in due:
+        for (time, *_, kind, behaviour_id, sync), block_id in due:
             record = self._blocks[block_id]
             if kind == "start":
                 record.lifecycle.handle(BlockEvent.START)
-                self._emit(block_progress(block_id, "start", time, self.character_id))
+                self._emit(block_progress(block_id, "start", time, self.character_id, "IN_EXEC"))
             elif kind == "sync":
                 self._emit(
                     sync_point_progress(
@@ -352,4 +368,4 @@ class Session:
                 )
             else:
                 record.lifecycle.handle(BlockEvent.FINISH)
-                self._emit(block_progress(block_id, "end", time, self.character_id))
+                self._emit(block_progress(block_id, "end", time, self.character_id, "DONE"))

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from lxml import etree
 
-from realizer.bml_parser import BML_NS
+from realizer.bml_parser import BML_NS, BMLA_NS
 from realizer.face.frame import FapFrame
 from realizer.feedback import Feedback
 from realizer.session import (
@@ -109,7 +109,8 @@ def test_prediction_gives_every_solved_time() -> None:
     assert float(block.get("globalStart", "nan")) == pytest.approx(10.0)
     assert float(block.get("globalEnd", "nan")) == pytest.approx(13.0)
     head = element.find("b:head", NS)
-    assert head is not None and head.get("id") == "nod1"
+    assert head is not None and head.get("id") == "b1:nod1"  # OpenBMLParser reads block:id
+    assert head.get("lexeme") == "NOD"
     [scheduled] = plan.behaviours
     for sync, time in scheduled.times.items():
         if sync in head.attrib:
@@ -220,7 +221,8 @@ def test_interrupting_a_running_block_ends_it_and_stops_its_progress() -> None:
     assert session.state("b1") is BlockState.INTERRUPTED
     [end] = session.take_feedback()
     element = xml(end)
-    assert element.get("id") == "b1:end" and element.get("status") == "INTERRUPTED"
+    assert element.get("id") == "b1:end"
+    assert element.get(f"{{{BMLA_NS}}}status") == "INTERRUPTED"
     assert float(element.get("globalTime", "nan")) == pytest.approx(1.0)
     assert drain(session, 6.0) == []
 

@@ -38,10 +38,11 @@ from realizer.bml_parser.tree import (
     SpeechText,
     TextSync,
 )
-from realizer.bml_parser.vocabulary import BML_NS, DRAFT_NS, EXT_NS, REALIZER_NS
+from realizer.bml_parser.vocabulary import BML_NS, BMLA_NS, DRAFT_NS, EXT_NS, REALIZER_NS
 from realizer.bml_parser.writer import canonical, serialise
 
 __all__ = [
+    "BMLA_NS",
     "BML_NS",
     "DEFAULT_LIMITS",
     "DRAFT_NS",

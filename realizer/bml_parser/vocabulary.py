@@ -17,6 +17,9 @@ BML_NS = "http://www.bml-initiative.org/bml/bml-1.0"
 EXT_NS = "http://www.bml-initiative.org/bml/coreextensions-1.0"
 DRAFT_NS = "http://www.mindmakers.org/projects/BML"
 REALIZER_NS = "urn:realizer:bml:face-1.0"
+#: AsapRealizer's BMLA extension (realizer control: block attributes,
+#: activate, interrupt, parameter value changes, feedback status).
+BMLA_NS = "http://www.asap-project.org/bmla"
 
 #: Dialect of each namespace the parser understands. ``""`` (no namespace) is
 #: read as the draft, which was often written without one.
@@ -102,3 +105,15 @@ def vocabulary() -> Vocabulary:
                 specs[("", element)] = spec
     all_syncs = frozenset(CANONICAL_SYNCS) | frozenset(draft_names) | {"attackPeak"}
     return Vocabulary(specs, namespaces, draft_names, all_syncs)
+
+
+@cache
+def prediction_element(behaviour_type: str) -> tuple[str, str, frozenset[str]] | None:
+    """(namespace, element name, attributes) of the element that writes a
+    behaviour of ``behaviour_type`` in feedback: its BML 1.0 (or core
+    extension, or this realizer's extension) element, whatever dialect the
+    block was written in. None for a type with no such element."""
+    for spec in vocabulary().specs.values():
+        if spec.type == behaviour_type and spec.dialect != "draft":
+            return vocabulary().namespaces[spec.dialect], spec.element, spec.attributes
+    return None

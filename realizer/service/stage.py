@@ -150,7 +150,8 @@ class Character:
 
 _ROOT_ID = re.compile(rb"<(?:\w+:)?bml\b[^>]*?\sid\s*=\s*[\"']([^\"']{0,200})[\"']")
 _FEEDBACK_ID = re.compile(r"\sid\s*=\s*[\"']([^\"']*)[\"']")
-_INTERRUPTED = re.compile(r"\sstatus\s*=\s*[\"']INTERRUPTED[\"']")
+# BMLA's block status (realizer.feedback): INTERRUPTED while running, REVOKED before
+_INTERRUPTED = re.compile(r"[\s:]status\s*=\s*[\"'](?:INTERRUPTED|REVOKED)[\"']")
 
 
 def _guess_block_id(text: str) -> str:
