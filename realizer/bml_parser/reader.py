@@ -17,13 +17,27 @@ Safety: no DTD is loaded, no entity is expanded, nothing is fetched from the
 network, a document larger than :attr:`Limits.max_bytes` is refused before
 parsing, and any DOCTYPE is refused (entity declarations are how the
 "billion laughs" and external-entity attacks work).
+
+Complexity and limits (the document is peer input): reading is linear in
+the document's size. The DOCTYPE pre-check is a scanner that never looks
+back; sync references are parsed in linear time
+(:mod:`realizer.bml_parser.syncref`); the regular expressions left here
+are deterministic (no two neighbouring parts can match the same
+character). Whatever multiplies work has a named limit in :class:`Limits`:
+behaviours per block, nesting depth, attributes per element, sync
+references per speech text or constraint relation, strokes of a
+repetition, the magnitude of numbers (times and offsets: one hour), and
+warnings per block (repeats collapse into one counted warning). Columns of
+warnings are found with a per-line cursor, so all lookups of one parse are
+linear too. A block over a limit is refused with a
+:class:`~realizer.bml_parser.errors.BmlSecurityError`; a behaviour whose
+attribute is out of range is not created, with a warning.
 """
 
 from __future__ import annotations
 
 import gc
 import itertools
-import math
 import re
 from dataclasses import dataclass
 from typing import Any, TypeVar
@@ -39,7 +53,7 @@ from realizer.bml_parser.errors import (
     WarningType,
 )
 from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement
-from realizer.bml_parser.syncref import SyncRef, parse_sync_ref
+from realizer.bml_parser.syncref import MAX_ITERATION, SyncRef, parse_sync_ref
 from realizer.bml_parser.tree import (
     Behaviour,
     Block,
@@ -58,16 +72,41 @@ _CHECKED_TYPES = frozenset({"fap", "emotion", "head"})
 # Clark-name prefixes ("{ns" before the "}") of the namespaces whose
 # <description> and <text> children the grammar reads.
 _CORE_PREFIXES = frozenset({"{" + BML_NS, "{" + DRAFT_NS, ""})
-_FAP_VALUE_RE = re.compile(r"\s*([0-9]+)\s*[=:]\s*([+-]?[0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*")
+# A FAP value of a <fap values="3=120 19:-80"> pair: deterministic (the sign,
+# the digits, the point and the exponent each start with a character the
+# part before cannot match), so matching is linear in the pair's length.
+_FAP_NUMBER_RE = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+#: Warnings of one type about one target listed one by one; the rest are counted.
+_REPEATS_LISTED = 4
+#: Beyond this many characters a line's column is not looked for (0: unknown).
+_COLUMN_WINDOW = 1 << 16
 
 
 @dataclass(frozen=True, slots=True)
 class Limits:
-    """Named limits on one BML document."""
+    """Named limits on one BML document; over one, the block is refused.
+
+    ``max_bytes``: the document's size in bytes. ``max_behaviours``:
+    behaviours in the block. ``max_depth``: element nesting.
+    ``max_attributes``: attributes on one element. ``max_sync_refs``: sync
+    references inside one behaviour's text or one constraint relation.
+    ``max_repetition``: strokes of one repeated behaviour (``repetition``,
+    the draft's ``repeats``). ``max_number``: the magnitude of a numeric
+    attribute (times and offsets have their own bound,
+    :data:`~realizer.bml_parser.syncref.MAX_SECONDS`). ``max_warnings``:
+    distinct warnings reported for one block; warnings of one type about one
+    target are one warning that counts them, and what is over this limit is
+    counted in a last warning.
+    """
 
     max_bytes: int = 4 * 1024 * 1024
     max_behaviours: int = 20_000
     max_depth: int = 64
+    max_attributes: int = 128
+    max_sync_refs: int = 1024
+    max_repetition: int = MAX_ITERATION
+    max_number: float = 1e6
+    max_warnings: int = 64
 
 
 DEFAULT_LIMITS = Limits()
@@ -105,11 +144,28 @@ _BYTES_PARSER = _make_parser(None)
 _TEXT_PARSER = _make_parser("utf-8")  # str input is encoded as UTF-8 whatever it declares
 
 
-def _is_number(text: str) -> bool:
+def _number_within(text: str, limit: float) -> bool:
+    """True when ``text`` is a number of magnitude at most ``limit``."""
     try:
-        return math.isfinite(float(text))
+        return abs(float(text)) <= limit  # False for inf and nan too
     except ValueError:
         return False
+
+
+def _fap_pair_ok(pair: str, limit: float) -> bool:
+    """True for ``N=value`` or ``N:value`` with N from 1 to 68 and a bounded value.
+
+    ``pair`` holds no whitespace (the caller split on it); linear in its length.
+    """
+    separator = min((at for at in (pair.find("="), pair.find(":")) if at >= 0), default=-1)
+    if separator <= 0:
+        return False
+    number, value = pair[:separator], pair[separator + 1 :]
+    if not (number.isascii() and number.isdigit() and len(number) <= 4):
+        return False
+    if not 1 <= int(number) <= 68 or _FAP_NUMBER_RE.fullmatch(value) is None:
+        return False
+    return abs(float(value)) <= limit
 
 
 class _Reader:
@@ -121,26 +177,47 @@ class _Reader:
         self.limits = limits
         self.vocab = vocabulary()
         self.warnings: list[BmlWarning] = []
+        # (type, target) -> [index in warnings, how many times reported]
+        self._warned: dict[tuple[WarningType, str], list[int]] = {}
+        self._suppressed = 0
         self.dropped: set[str] = set()
         self.ids: set[str] = set()
         self.block_id = ""
         self.behaviour_count = 0
-        self._lines: list[str] | None = None
+        self._text: str | None = None
+        self._line_starts: list[int] = []
+        self._cursor: dict[int, int] = {}  # line -> where its next search starts
         self.flat_namespaces = False
 
     # -- positions and reports -------------------------------------------
 
     def column(self, line: int, needle: str) -> int:
-        """The 1-based column of ``needle`` at or after ``line``, found on demand."""
+        """The 1-based column of ``needle`` on ``line`` (0 when not found).
+
+        Elements and attributes are reported in document order, so each
+        line's search starts where its last one matched (falling back to the
+        line's start), and looks at most :data:`_COLUMN_WINDOW` characters
+        ahead: with the bound on warnings per block, all lookups of one
+        parse cost time linear in the document's size.
+        """
         if line <= 0:
             return 0
-        if self._lines is None:
-            self._lines = self.data.decode("utf-8", "replace").splitlines()
-        for number in range(line - 1, min(line + 20, len(self._lines))):
-            found = self._lines[number].find(needle)
-            if found >= 0:
-                return found + 1 if number == line - 1 else 0
-        return 0
+        if self._text is None:
+            self._text = self.data.decode("utf-8", "replace")
+            self._line_starts = [0]
+            self._line_starts.extend(m.end() for m in re.finditer(r"\r\n?|\n", self._text))
+        if line > len(self._line_starts):
+            return 0
+        line_start = self._line_starts[line - 1]
+        line_end = self._line_starts[line] if line < len(self._line_starts) else len(self._text)
+        begin = self._cursor.get(line, line_start)
+        found = self._text.find(needle, begin, min(line_end, begin + _COLUMN_WINDOW))
+        if found < 0 and begin > line_start:
+            found = self._text.find(needle, line_start, min(line_end, begin + _COLUMN_WINDOW))
+        if found < 0:
+            return 0
+        self._cursor[line] = found + 1
+        return found - line_start + 1
 
     def error(
         self,
@@ -162,7 +239,28 @@ class _Reader:
     def warn(
         self, kind: WarningType, message: str, element: Any, target: str = "", needle: str = "<"
     ) -> None:
+        """Report a warning; repeats of one type about one target are counted.
+
+        The first :data:`_REPEATS_LISTED` warnings of one type about one
+        target are listed, the last of them counts the rest; at most
+        ``limits.max_warnings`` are kept per block (those over it are
+        counted in :meth:`final_warnings`). So one block cannot flood its
+        listeners, nor cost a column lookup per attribute.
+        """
+        key = (kind, target)
+        seen = self._warned.get(key)
+        if seen is not None and seen[1] >= _REPEATS_LISTED:
+            seen[1] += 1
+            return
+        if len(self.warnings) >= self.limits.max_warnings:
+            self._suppressed += 1
+            return
         line = int(getattr(element, "sourceline", 0) or 0)
+        if seen is None:
+            self._warned[key] = [len(self.warnings), 1]
+        else:
+            seen[0] = len(self.warnings)
+            seen[1] += 1
         self.warnings.append(
             BmlWarning(
                 kind,
@@ -172,6 +270,31 @@ class _Reader:
                 column=self.column(line, needle),
             )
         )
+
+    def final_warnings(self) -> tuple[BmlWarning, ...]:
+        """The warnings with their repeat counts, and a count of those over the limit."""
+        warnings = list(self.warnings)
+        for index, count in self._warned.values():
+            if count > _REPEATS_LISTED:
+                first = warnings[index]
+                more = count - _REPEATS_LISTED
+                warnings[index] = BmlWarning(
+                    first.type,
+                    f"{first.message} (and {more} more like it)",
+                    first.id,
+                    first.line,
+                    first.column,
+                )
+        if self._suppressed:
+            warnings.append(
+                BmlWarning(
+                    WarningType.PARSING_FAILURE,
+                    f"{self._suppressed} more warnings about block {self.block_id!r} are not "
+                    f"listed (limit of {self.limits.max_warnings} warnings per block)",
+                    id=self.block_id,
+                )
+            )
+        return tuple(warnings)
 
     def sync_ref(self, raw: str, element: Any, attribute: str, aliases: Any = ()) -> SyncRef:
         try:
@@ -189,6 +312,13 @@ class _Reader:
     ) -> tuple[dict[str, Any], dict[str | None, str]]:
         """The lossless fields every element keeps (children filled by the caller),
         and the namespaces in scope inside it."""
+        if len(el.attrib) > self.limits.max_attributes:
+            raise self.error(
+                BmlSecurityError,
+                f"<{etree.QName(el).localname}> has {len(el.attrib)} attributes; the limit is "
+                f"{self.limits.max_attributes} per element",
+                el,
+            )
         if self.flat_namespaces and parent_nsmap:
             nsmap = parent_nsmap
             decls: tuple[tuple[str | None, str], ...] = ()
@@ -359,14 +489,19 @@ class _Reader:
         params: list[tuple[str, str]] = []
         sync_refs: list[tuple[str, SyncRef]] = []
         problem = ""
+        if len(el.attrib) > self.limits.max_attributes:
+            self.common(el, nsmap)  # raises the limit's error
         attributes = tuple(el.attrib.items())
         for name, value in attributes:
             sync_name = sync_attributes.get(name)
             if sync_name is not None:
                 sync_refs.append((sync_name, self.sync_ref(value, el, name, aliases)))
             elif name in understood:
-                if name in spec.numeric and not _is_number(value):
-                    problem = f"attribute {name}={value!r} of {behaviour_id!r} is not a number"
+                if name in spec.numeric and not _number_within(value, self.limits.max_number):
+                    problem = (
+                        f"attribute {name}={value[:40]!r} of {behaviour_id!r} is not a number "
+                        f"of magnitude at most {self.limits.max_number:g}"
+                    )
                 params.append((name, value))
             elif name == "id":
                 continue
@@ -396,7 +531,7 @@ class _Reader:
         if spec.dialect == "draft":
             behaviour_type, params = self.translate(spec, params)
         if not problem and behaviour_type in _CHECKED_TYPES:
-            problem = self.check_params(behaviour_type, params, behaviour_id)
+            problem = self.check_params(behaviour_type, params, behaviour_id, self.limits)
 
         fields, inner = self.common(el, nsmap, attributes)
         children: list[Node] = []
@@ -464,7 +599,9 @@ class _Reader:
         return spec.type, params
 
     @staticmethod
-    def check_params(behaviour_type: str, params: list[tuple[str, str]], behaviour_id: str) -> str:
+    def check_params(
+        behaviour_type: str, params: list[tuple[str, str]], behaviour_id: str, limits: Limits
+    ) -> str:
         """Checks of our extension behaviours; returns a problem or ``""``."""
         values = dict(params)
         if behaviour_type == "fap":
@@ -472,11 +609,11 @@ class _Reader:
             if not pairs:
                 return f"fap behaviour {behaviour_id!r} has no values"
             for pair in pairs:
-                match = _FAP_VALUE_RE.fullmatch(pair)
-                if match is None or not 1 <= int(match.group(1)) <= 68:
+                if not _fap_pair_ok(pair, limits.max_number):
                     return (
-                        f"fap behaviour {behaviour_id!r}: {pair!r} is not FAP=value "
-                        "with a FAP number from 1 to 68"
+                        f"fap behaviour {behaviour_id!r}: {pair[:40]!r} is not FAP=value "
+                        "with a FAP number from 1 to 68 and a value of magnitude at most "
+                        f"{limits.max_number:g}"
                     )
         elif behaviour_type == "emotion":
             if "word" not in values and not ("angle" in values and "activation" in values):
@@ -485,9 +622,14 @@ class _Reader:
                     "activation"
                 )
         elif behaviour_type == "head" and "repetition" in values:
-            repetition = float(values["repetition"])
+            repetition = float(values["repetition"])  # a number within max_number
             if repetition < 1 or repetition != int(repetition):
                 return f"head {behaviour_id!r}: repetition must be a whole number of at least 1"
+            if repetition > limits.max_repetition:
+                return (
+                    f"head {behaviour_id!r}: repetition {repetition:g} is over the limit of "
+                    f"{limits.max_repetition}"
+                )
         return ""
 
     @staticmethod
@@ -533,11 +675,14 @@ class _Reader:
         fields["children"] = tuple(self.other(child, inner, 3) for child in el)
         priority_text = el.get("priority", "0")
         try:
+            if len(priority_text) > 12:  # int() of thousands of digits is slow
+                raise ValueError(priority_text)
             priority = int(priority_text)
         except ValueError:
             raise self.error(
                 BmlSyntaxError,
-                f"description priority {priority_text!r} is not an integer",
+                f"description priority {priority_text[:40]!r} is not an integer of at most "
+                "12 characters",
                 el,
                 'priority="',
             ) from None
@@ -565,6 +710,13 @@ class _Reader:
                         f'"{sync_id}"',
                     )
                 seen.add(sync_id)
+                if len(seen) > self.limits.max_sync_refs:
+                    raise self.error(
+                        BmlSecurityError,
+                        f"speech {behaviour_id!r} has more than {self.limits.max_sync_refs} "
+                        "<sync> markers",
+                        child,
+                    )
                 ref_text = child.get("ref")
                 ref = self.sync_ref(ref_text, child, "ref", aliases) if ref_text else None
                 sync_fields, sync_inner = self.common(child, inner)
@@ -621,6 +773,12 @@ class _Reader:
                 sync_text = child.get("ref")
                 if sync_text is None:
                     raise self.error(BmlSyntaxError, f"<sync> in <{kind}> needs a ref", child)
+                if len(syncs) >= self.limits.max_sync_refs:
+                    raise self.error(
+                        BmlSecurityError,
+                        f"<{kind}> has more than {self.limits.max_sync_refs} sync references",
+                        child,
+                    )
                 syncs.append(self.sync_ref(sync_text, child, "ref"))
             children.append(self.other(child, inner, 3))
         fields["children"] = tuple(children)
@@ -633,7 +791,38 @@ class _Reader:
         return Relation(**fields, kind=kind, ref=ref, syncs=tuple(syncs))
 
 
-_DOCTYPE_RE = re.compile(rb"^(?:\xef\xbb\xbf)?(?:\s+|<\?.*?\?>|<!--.*?-->)*<!DOCTYPE", re.S)
+_XML_SPACE = b" \t\r\n"
+
+
+def _has_doctype(raw: bytes) -> bool:
+    """True when a DOCTYPE follows the BOM, whitespace, PIs and comments.
+
+    A scanner, linear in the prolog's length: each step skips whitespace or
+    jumps past the end of a PI or comment, and never looks back.
+    """
+    at = 3 if raw.startswith(b"\xef\xbb\xbf") else 0
+    size = len(raw)
+    while at < size:
+        byte = raw[at : at + 1]
+        if byte in (b" ", b"\t", b"\r", b"\n"):
+            at += 1
+            while at < size and raw[at] in _XML_SPACE:
+                at += 1
+        elif raw.startswith(b"<?", at):
+            end = raw.find(b"?>", at + 2)
+            if end < 0:
+                return False
+            at = end + 2
+        elif raw.startswith(b"<!--", at):
+            end = raw.find(b"-->", at + 4)
+            if end < 0:
+                return False
+            at = end + 3
+        else:
+            return raw.startswith(b"<!DOCTYPE", at)
+    return False
+
+
 _DOCTYPE_MESSAGE = (
     "DOCTYPE declarations are not allowed in BML (entity expansion and external DTDs are refused)"
 )
@@ -684,7 +873,7 @@ def parse_bml(
             column=1,
             source=source,
         )
-    if _DOCTYPE_RE.match(raw):
+    if _has_doctype(raw):
         # Refuse before libxml2 even reads the internal subset.
         raise BmlSecurityError(_DOCTYPE_MESSAGE, line=1, column=1, source=source)
     try:
@@ -709,4 +898,4 @@ def parse_bml(
     finally:
         if collecting:
             gc.enable()
-    return ParseResult(block, tuple(reader.warnings), frozenset(reader.dropped))
+    return ParseResult(block, reader.final_warnings(), frozenset(reader.dropped))

@@ -13,22 +13,41 @@ Whitespace around the parts is tolerated. The raw text is kept beside the
 parsed form so that a document serialises back exactly as written.
 Malformed references raise :class:`~realizer.bml_parser.errors.SyncRefError`
 with a message that says what is wrong; the parser adds line and column.
+
+Complexity and limits (a reference is peer input): parsing is linear in the
+reference's length. The common shapes go through one regular expression in
+which no two neighbouring parts can match the same character, so it never
+backtracks more than a character; everything else is a scanner over
+``str`` methods (``strip``, ``rfind``, ``split``) that looks at each
+character a bounded number of times. Times and offsets are finite and at
+most :data:`MAX_SECONDS` in magnitude; an iteration is at most
+:data:`MAX_ITERATION`. Only references up to :data:`_CACHED_CHARS`
+characters are memoised, so the cache holds a bounded amount of text.
 """
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 from realizer.bml_parser.errors import SyncRefError
 
+#: The largest magnitude of a time or an offset, seconds (one hour). Beyond
+#: it a block would not end within any session a person watches, and the
+#: frame arithmetic downstream loses precision or overflows.
+MAX_SECONDS = 3600.0
+#: The largest stroke iteration a reference may name (``nod1:stroke:N``);
+#: the same bound as the parser's ``Limits.max_repetition`` default.
+MAX_ITERATION = 32
+
+# Deterministic: each alternative starts with a different character class,
+# and every quantified part is followed by a character it cannot match.
 _NUMBER = r"[0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?|\.[0-9]+(?:[eE][+-]?[0-9]+)?"
-_NUMBER_RE = re.compile(rf"\s*[+-]?(?:{_NUMBER})\s*")
-_OFFSET_RE = re.compile(rf"^(?P<rest>.*?)\s*(?P<sign>[+-])\s*(?P<num>{_NUMBER})\s*$", re.S)
+_UNSIGNED_RE = re.compile(_NUMBER)
+_SIGNED_RE = re.compile(rf"[+-]?(?:{_NUMBER})")
 _NAME_RE = re.compile(r"[A-Za-z_][\w.\-]*")
-_INT_RE = re.compile(r"[0-9]+")
+_CACHED_CHARS = 256
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,15 +85,26 @@ class SyncRef:
         return self.raw
 
 
-def _parse_number(text: str, raw: str) -> float:
+def _seconds(text: str, raw: str, what: str) -> float:
+    """``text`` (already known to be a decimal number) as seconds within the limit."""
     value = float(text)
-    if not math.isfinite(value):
-        raise SyncRefError(f"sync reference {raw!r}: offset is not a finite number")
+    if not abs(value) <= MAX_SECONDS:  # also refuses inf and nan
+        raise SyncRefError(
+            f"sync reference {_short(raw)}: {what} {_short(text)} is beyond the limit "
+            f"of {MAX_SECONDS:g} seconds"
+        )
     return value
 
 
+def _short(text: str) -> str:
+    """``text`` quoted for a message, cut to a readable length."""
+    return repr(text) if len(text) <= 80 else repr(text[:77] + "...")
+
+
 # The common shapes, ``behaviour:sync[+|-offset]`` and a bare number, in one
-# match; anything else goes through the full grammar below.
+# match; anything else goes through the scanner below. Linear: the leading
+# and trailing whitespace runs border characters they cannot match, the lazy
+# behaviour name stops at the first ':', which it cannot contain.
 _FAST_RE = re.compile(
     rf"\s*(?:(?P<time>[+-]?(?:{_NUMBER}))|(?P<beh>[A-Za-z_][\w.\-]*?):(?P<sync>[A-Za-z_][\w.]*)"
     rf"(?:(?P<sign>[+-])(?P<num>{_NUMBER}))?)\s*"
@@ -92,7 +122,7 @@ def parse_sync_ref(raw: str, *, sync_aliases: tuple[tuple[str, str], ...] = ()) 
         time = match.group("time")
         if time is not None:
             value = float(time)
-            if math.isfinite(value):
+            if abs(value) <= MAX_SECONDS:
                 return SyncRef(raw, None, None, None, None, value)
         else:
             number = match.group("num")
@@ -101,53 +131,100 @@ def parse_sync_ref(raw: str, *, sync_aliases: tuple[tuple[str, str], ...] = ()) 
                 offset = float(number)
                 if match.group("sign") == "-":
                     offset = -offset
-            if math.isfinite(offset):
+            if abs(offset) <= MAX_SECONDS:
                 return SyncRef(raw, match.group("beh"), match.group("sync"), None, None, offset)
-    return _parse_sync_ref(raw, sync_aliases)
+    if len(raw) <= _CACHED_CHARS:
+        return _parse_cached(raw, sync_aliases)
+    return _parse(raw, sync_aliases)
 
 
 @lru_cache(maxsize=4096)
-def _parse_sync_ref(raw: str, sync_aliases: tuple[tuple[str, str], ...]) -> SyncRef:
+def _parse_cached(raw: str, sync_aliases: tuple[tuple[str, str], ...]) -> SyncRef:
+    return _parse(raw, sync_aliases)
+
+
+def _last_sign(text: str, end: int) -> int:
+    """The index of the last ``+`` or ``-`` before ``end``, or -1."""
+    return max(text.rfind("+", 0, end), text.rfind("-", 0, end))
+
+
+def _split_offset(text: str) -> tuple[str, str, str] | None:
+    """``(rest, sign, number)`` when ``text`` ends in ``[+-] number``, else None.
+
+    The earliest sign after which only a number (and whitespace) follows
+    wins; a number holds at most one sign (in its exponent), so only the
+    last two signs of the text can be that one.
+    """
+    last = _last_sign(text, len(text))
+    if last < 0:
+        return None
+    before = _last_sign(text, last)
+    for at in (before, last):
+        if at >= 0:
+            number = text[at + 1 :].strip()
+            if _UNSIGNED_RE.fullmatch(number):
+                return text[:at].rstrip(), text[at], number
+    return None
+
+
+def _dangling_sign(text: str) -> bool:
+    """True when a ``+``, or a ``-`` that cannot be part of a name, is in ``text``.
+
+    ``text`` is stripped; a ``-`` inside a name (``my-nod``) is followed by
+    a name character or a colon.
+    """
+    if "+" in text:
+        return True
+    at = text.find("-", 1)
+    while at >= 0:
+        following = text[at + 1 : at + 2]
+        if not following or not (following.isalnum() or following in "_:"):
+            return True
+        at = text.find("-", at + 1)
+    return False
+
+
+def _parse(raw: str, sync_aliases: tuple[tuple[str, str], ...]) -> SyncRef:
     text = raw.strip()
     if not text:
         raise SyncRefError("empty sync reference")
-    if _NUMBER_RE.fullmatch(text):
-        return SyncRef(raw=raw, behaviour=None, sync=None, offset=_parse_number(text, raw))
+    if _SIGNED_RE.fullmatch(text):
+        return SyncRef(raw=raw, behaviour=None, sync=None, offset=_seconds(text, raw, "time"))
 
     offset = 0.0
     rest = text
-    match = _OFFSET_RE.match(text)
-    if match and ":" in match.group("rest"):
-        rest = match.group("rest")
-        offset = _parse_number(match.group("num"), raw)
-        if match.group("sign") == "-":
+    split = _split_offset(text)
+    if split is not None and ":" in split[0]:
+        rest, sign, number = split
+        offset = _seconds(number, raw, "offset")
+        if sign == "-":
             offset = -offset
-    elif re.search(r"[+]", text) or re.search(r"(?<=\S)\s*-\s*[^:\w]|-\s*$", text):
-        raise SyncRefError(f"sync reference {raw!r}: offset after + or - is not a number")
+    elif _dangling_sign(text):
+        raise SyncRefError(f"sync reference {_short(raw)}: offset after + or - is not a number")
 
     if rest.startswith(":"):
-        raise SyncRefError(f"sync reference {raw!r} starts with a colon")
+        raise SyncRefError(f"sync reference {_short(raw)} starts with a colon")
     if rest.endswith(":"):
-        raise SyncRefError(f"sync reference {raw!r} ends with a colon")
-    parts = [p.strip() for p in rest.split(":")]
+        raise SyncRefError(f"sync reference {_short(raw)} ends with a colon")
+    parts = rest.split(":", 4)
     if len(parts) < 2:
         raise SyncRefError(
-            f"sync reference {raw!r}: expected behaviour:sync, a number, or block:behaviour:sync"
+            f"sync reference {_short(raw)}: expected behaviour:sync, a number, "
+            "or block:behaviour:sync"
         )
     if len(parts) > 4:
-        raise SyncRefError(f"sync reference {raw!r} has too many parts ({len(parts)}; at most 4)")
+        raise SyncRefError(
+            f"sync reference {_short(raw)} has too many parts ({rest.count(':') + 1}; at most 4)"
+        )
+    parts = [part.strip() for part in parts]
     iteration: int | None = None
     block: str | None = None
     if len(parts) == 4:
-        if not _INT_RE.fullmatch(parts[3]):
-            raise SyncRefError(
-                f"sync reference {raw!r}: iteration {parts[3]!r} is not a positive integer"
-            )
-        iteration = int(parts[3])
+        iteration = _iteration(parts[3], raw)
         block, behaviour, sync = parts[0], parts[1], parts[2]
     elif len(parts) == 3:
-        if _INT_RE.fullmatch(parts[2]):
-            iteration = int(parts[2])
+        if parts[2].isascii() and parts[2].isdigit():
+            iteration = _iteration(parts[2], raw)
             behaviour, sync = parts[0], parts[1]
         else:
             block, behaviour, sync = parts
@@ -155,15 +232,29 @@ def _parse_sync_ref(raw: str, sync_aliases: tuple[tuple[str, str], ...]) -> Sync
         behaviour, sync = parts
     for name in (block, behaviour, sync):
         if name is not None and not _NAME_RE.fullmatch(name):
-            raise SyncRefError(f"sync reference {raw!r}: {name!r} is not a valid name")
+            raise SyncRefError(f"sync reference {_short(raw)}: {_short(name)} is not a valid name")
     sync = dict(sync_aliases).get(sync, sync)
-    if iteration is not None:
-        if sync != "stroke":
-            raise SyncRefError(
-                f"sync reference {raw!r}: an iteration is only allowed on 'stroke', not {sync!r}"
-            )
-        if iteration < 1:
-            raise SyncRefError(f"sync reference {raw!r}: iteration must be 1 or more")
+    if iteration is not None and sync != "stroke":
+        raise SyncRefError(
+            f"sync reference {_short(raw)}: an iteration is only allowed on 'stroke', not {sync!r}"
+        )
     return SyncRef(
         raw=raw, behaviour=behaviour, sync=sync, block=block, iteration=iteration, offset=offset
     )
+
+
+def _iteration(text: str, raw: str) -> int:
+    """A stroke iteration: a whole number from 1 to :data:`MAX_ITERATION`."""
+    if not (text.isascii() and text.isdigit()):
+        raise SyncRefError(
+            f"sync reference {_short(raw)}: iteration {_short(text)} is not a positive integer"
+        )
+    # Compared as text first: int() of thousands of digits is slow, then refused.
+    if len(text.lstrip("0")) > len(str(MAX_ITERATION)) or int(text) > MAX_ITERATION:
+        raise SyncRefError(
+            f"sync reference {_short(raw)}: iteration {_short(text)} is beyond the limit "
+            f"of {MAX_ITERATION}"
+        )
+    if int(text) < 1:
+        raise SyncRefError(f"sync reference {_short(raw)}: iteration must be 1 or more")
+    return int(text)
