@@ -15,6 +15,7 @@ APT_PACKAGES=(
     libosmesa6 libgl1 libegl1 libgl1-mesa-dri libglu1-mesa
     ffmpeg
     chromium chromium-driver
+    npm
 )
 
 if [ "${REALIZER_SKIP_APT:-0}" != "1" ] && command -v apt-get >/dev/null 2>&1; then
@@ -40,4 +41,6 @@ fi
 # pyrender pins PyOpenGL==3.1.0, which breaks OSMesa; install it without its
 # pins (its real dependencies are in the `render` extra).
 .venv/bin/python -m pip install -q --no-deps 'pyrender==0.1.45'
+# three.js for the browser viewer, from npm into a gitignored folder
+bash scripts/vendor_three.sh
 echo "setup: done. Try: .venv/bin/realizer --help"

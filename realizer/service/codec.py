@@ -95,6 +95,12 @@ def mesh_message(
     )
 
 
+def model_message(character_id: str, fields: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``model`` message: the deformation model's arrays
+    (:func:`realizer.face.gpu_model.model_message_fields`)."""
+    return {"type": "model", "v": PROTOCOL_VERSION, "character": character_id, **fields}
+
+
 def fap_payload(values: FloatArray, mask: npt.NDArray[np.bool_]) -> FapPayload:
     """The set FAPs of a (68,) FAP vector and its (68,) mask."""
     (index,) = np.nonzero(mask)

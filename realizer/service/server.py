@@ -191,6 +191,7 @@ class Viewer:
     direct: int = 0  # frames written at once, without the pump
     idle: bool = False  # the pump waits for something to send
     closing: bool = False
+    wants_model: bool = False  # send the deformation model after each mesh
 
     def offer(self, frame: bytes, write_limit: int = 0) -> None:
         """Send the newest frame, or put it in the mailbox (replacing an
@@ -570,7 +571,10 @@ class RealizerService:
             await connection.close(exc.close_code, exc.message[:120])
             return
         viewer = Viewer(connection, character, options)
+        viewer.wants_model = query.get("model", "false").lower() in ("1", "true", "yes")
         viewer.control.append(self._encoder(character).mesh_bytes)
+        if viewer.wants_model:
+            viewer.control.append(self._encoder(character).model_bytes)
         self.viewers.setdefault(character, set()).add(viewer)
         pump = self._spawn(self._pump_viewer(viewer))
         try:
@@ -613,6 +617,8 @@ class RealizerService:
         self.viewers.setdefault(character, set()).add(viewer)
         viewer.latest = None  # a frame of the old subscription must not follow the new mesh
         self._control(viewer, self._encoder(character).mesh_bytes)
+        if viewer.wants_model:
+            viewer.control.append(self._encoder(character).model_bytes)
 
     def _control(self, viewer: Viewer, data: bytes) -> None:
         if len(viewer.control) >= self.limits.subscribe_backlog:
@@ -718,10 +724,16 @@ class _StaticFiles:
     def __init__(self) -> None:
         self._files: dict[str, tuple[bytes, str]] = {}
         root = resources.files("realizer.service") / "static"
-        for entry in root.iterdir():
-            suffix = "." + entry.name.rpartition(".")[2]
-            if entry.is_file() and suffix in self._TYPES:
-                self._files["/static/" + entry.name] = (entry.read_bytes(), self._TYPES[suffix])
+        # one level of folders: static/vendor/three/ holds three.js (scripts/setup.sh)
+        pending = [(root, "/static/", 0)]
+        while pending:
+            folder, prefix, depth = pending.pop()
+            for entry in folder.iterdir():
+                suffix = "." + entry.name.rpartition(".")[2]
+                if entry.is_dir() and depth < 2:
+                    pending.append((entry, prefix + entry.name + "/", depth + 1))
+                elif entry.is_file() and suffix in self._TYPES:
+                    self._files[prefix + entry.name] = (entry.read_bytes(), self._TYPES[suffix])
         if "/static/index.html" in self._files:
             self._files["/"] = self._files["/static/index.html"]
 

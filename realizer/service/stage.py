@@ -394,7 +394,20 @@ class FrameEncoder:
         self._vector: npt.NDArray[np.float64] | None = None
         self._vertices32: bytes | None = None
         self._delta: DeltaPayload | None = None
+        self._model_bytes: bytes | None = None
         self.deformations = 0  # how many times the face was deformed (for tests)
+
+    @property
+    def model_bytes(self) -> bytes:
+        """The ``model`` message (protocols/viewer.md): the face's deformation
+        model as data, for viewers that deform the face themselves. Built on
+        first use (a few hundred kB for the default face), then cached."""
+        if self._model_bytes is None:
+            from realizer.face.gpu_model import gpu_model_for, model_message_fields
+
+            fields = model_message_fields(gpu_model_for(self.face))
+            self._model_bytes = codec.pack(codec.model_message(self.character_id, fields))
+        return self._model_bytes
 
     def encode(
         self, number: int, time: float, frame: FrameLike, wanted: Iterable[ViewOptions]
