@@ -106,6 +106,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     except KeyboardInterrupt:
         return 130
+    except ImportError as exc:
+        # an optional dependency is missing: name the extra that brings it
+        from realizer.extras import MissingExtraError, explain
+
+        feature = f"realizer {args.command.replace('_', '-')}"
+        missing = exc if isinstance(exc, MissingExtraError) else None
+        if missing is None and isinstance(exc, ModuleNotFoundError):
+            missing = explain(exc, feature)
+        if missing is None:
+            raise
+        print(f"realizer: error: {missing}", file=sys.stderr)
+        return 2
     return status
 
 

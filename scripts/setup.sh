@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One-command set-up: Debian packages, a virtual environment in .venv, and the
-# realizer with everything its tests and renderers need.
+# realizer with every extra and the development tools (.[dev,all]).
 #
 #   bash scripts/setup.sh
 #
@@ -37,7 +37,7 @@ if [ ! -x .venv/bin/python ]; then
     "$PYTHON" -m venv .venv
 fi
 .venv/bin/python -m pip install -q --upgrade pip
-.venv/bin/python -m pip install -q -e '.[dev,render]'
+.venv/bin/python -m pip install -q -e '.[dev,all]'
 # pyrender pins PyOpenGL==3.1.0, which breaks OSMesa; install it without its
 # pins (its real dependencies are in the `render` extra).
 .venv/bin/python -m pip install -q --no-deps 'pyrender==0.1.45'

@@ -1,6 +1,6 @@
 """``realizer bench [AREA...] [--quick] [--json FILE]``: run the benchmark harness.
 
-Benchmarks live in ``benchmarks/bench_<area>.py`` of a source checkout; each
+Benchmarks live in ``benchmarks/bench_<area>.py`` (in the wheel too); each
 defines ``run(quick: bool = False) -> None`` and prints its figures and
 ratios, recording its headline figures through ``benchmarks/_timing.py``'s
 ``figure`` so that ``--json FILE`` can write them for a machine to compare
@@ -25,8 +25,14 @@ from typing import Any
 
 
 def benchmarks_dir() -> Path:
-    """``benchmarks/`` beside the package (a source checkout or editable install)."""
-    return Path(__file__).resolve().parents[2] / "benchmarks"
+    """Where the benchmarks are: inside an installed wheel, or in a source checkout.
+
+    The wheel carries ``benchmarks/`` as ``realizer/benchmarks/``; a source
+    checkout (or an editable install) has it beside the package.
+    """
+    package = Path(__file__).resolve().parents[1]
+    installed = package / "benchmarks"
+    return installed if installed.is_dir() else package.parent / "benchmarks"
 
 
 def available() -> dict[str, Path]:

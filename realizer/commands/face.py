@@ -52,6 +52,9 @@ def fap_file_frame(path: str, frame: int) -> npt.NDArray[np.float64]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from realizer.extras import require
+
+    require("render", "realizer face")
     from realizer.errors import RealizerError
     from realizer.face.deform import deform
     from realizer.face.render import FaceRenderer, RenderUnavailableError, save_png

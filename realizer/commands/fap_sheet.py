@@ -160,6 +160,9 @@ def build_sheet(face: Face, tile: int = 128) -> npt.NDArray[np.uint8]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from realizer.extras import require
+
+    require("render", "realizer fap-sheet")
     from realizer.face.render import RenderUnavailableError, save_png
 
     if args.face:

@@ -79,6 +79,9 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from realizer.extras import require
+
+    require("plots", "realizer plot")
     from realizer.commands.schedule import schedule_files
 
     outcomes, errors = schedule_files([args.file])

@@ -25,6 +25,9 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: Any) -> int:
+    from realizer.extras import require
+
+    require("plots", "realizer plot-faps")
     from realizer.commands.facs import fap_names
     from realizer.commands.faps import recording_for
     from realizer.face.plotting import plot_fap_tracks

@@ -83,6 +83,9 @@ class ProgressBar:
 
 
 def run(args: argparse.Namespace) -> int:
+    from realizer.extras import require
+
+    require("render", "realizer render")
     import numpy as np
 
     from realizer.errors import RealizerError
