@@ -75,8 +75,11 @@ def test_a_block_ends_before_the_block_appended_after_it_starts() -> None:
 def test_behaviours_at_one_instant_come_in_document_order() -> None:
     session = Session()
     session.receive_bml(
-        bml("b1", '<head id="z" lexeme="NOD" start="0" end="1"/>'
-                  '<head id="a" lexeme="SHAKE" start="0" end="1"/>'),  # fmt: skip
+        bml(
+            "b1",
+            '<head id="z" lexeme="NOD" start="0" end="1"/>'
+            '<head id="a" lexeme="SHAKE" start="0" end="1"/>',
+        ),
         now=0.0,
     )
     order = [i for i in ids(session, 2.0) if i.endswith(":end")]
