@@ -24,13 +24,19 @@ saiba/OpenBMLParser reads and writes them):
 * ``warningFeedback``: ``id`` and ``type`` (a BML 1.0 warning type) with the
   message as text.
 
-Times are seconds, written with microsecond precision.
+Times are seconds, written with microsecond precision. Every message is
+well-formed XML 1.0 whatever a peer sent: ids, types and messages that did
+not come through the parser (an interrupt's block id, a refused character
+id) have each character XML 1.0 cannot carry (C0 controls other than tab,
+newline and carriage return; U+FFFE, U+FFFF; lone surrogates) replaced by
+U+FFFD, the replacement character.
 :func:`realizer.bml_parser.feedback.parse_feedback` reads every message back
 strictly.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -41,6 +47,15 @@ from realizer.bml_parser.vocabulary import BMLA_NS, prediction_element
 
 _XMLNS = f"xmlns={quoteattr(BML_NS)}"
 _BMLA = f"xmlns:bmla={quoteattr(BMLA_NS)}"
+
+# One character class: linear, no backtracking.
+_NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def xml_safe(text: str) -> str:
+    """``text`` with each character XML 1.0 cannot carry replaced by U+FFFD."""
+    return _NOT_XML.sub("\ufffd", text)
+
 
 #: BMLA block statuses this realizer reports (AsapRealizer's BMLABlockStatus).
 BLOCK_STATUSES = ("IN_EXEC", "DONE", "INTERRUPTED", "REVOKED", "FAILED")
@@ -63,7 +78,7 @@ def _t(seconds: float) -> str:
 
 
 def _character(character_id: str | None) -> str:
-    return f" characterId={quoteattr(character_id)}" if character_id else ""
+    return f" characterId={quoteattr(xml_safe(character_id))}" if character_id else ""
 
 
 def block_progress(
@@ -74,7 +89,7 @@ def block_progress(
         raise ValueError(f"unknown block status {status!r}")
     extra = f" {_BMLA} bmla:status={quoteattr(status)}" if status else ""
     xml = (
-        f"<blockProgress {_XMLNS}{extra} id={quoteattr(f'{block_id}:{which}')} "
+        f"<blockProgress {_XMLNS}{extra} id={quoteattr(xml_safe(f'{block_id}:{which}'))} "
         f'globalTime="{_t(global_time)}"{_character(character_id)}/>'
     )
     return Feedback("blockProgress", block_id, global_time, xml)
@@ -100,8 +115,9 @@ def warning(
     character_id: str | None,
 ) -> Feedback:  # fmt: skip
     xml = (
-        f"<warningFeedback {_XMLNS} id={quoteattr(target or block_id)} "
-        f"type={quoteattr(warning_type)}{_character(character_id)}>{escape(message)}"
+        f"<warningFeedback {_XMLNS} id={quoteattr(xml_safe(target or block_id))} "
+        f"type={quoteattr(xml_safe(warning_type))}{_character(character_id)}>"
+        f"{escape(xml_safe(message))}"
         "</warningFeedback>"
     )
     return Feedback("warning", block_id, time, xml)

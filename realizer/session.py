@@ -220,16 +220,13 @@ class Session:
             for note in exc.warnings:
                 self._emit(warning(block.id, note.id, str(note.type), note.message, now,
                                    self.character_id))  # fmt: skip
-            lifecycle.handle(BlockEvent.FAIL)
-            self._blocks[block.id] = _Record(
-                TimedPlan(block, start, start, ()), lifecycle, events=deque()
-            )
+            self._failed(block, start, lifecycle)
             return None
-        for note in plan.warnings:
-            self._emit(warning(block.id, note.id, str(note.type), note.message, now,
-                               self.character_id))  # fmt: skip
-        self._emit(
-            prediction(
+        try:
+            # Everything that can still go wrong with this block happens
+            # before its prediction is sent: a prediction is a promise that
+            # the block runs and ends.
+            predicted = prediction(
                 block.id,
                 plan.start,
                 plan.end,
@@ -237,7 +234,42 @@ class Session:
                 now,
                 self.character_id,
             )
-        )
+            events = self._events(plan)
+            animations = []
+            for scheduled in plan.behaviours:
+                if scheduled.id in plan.unrealized:
+                    continue
+                animation = self.registry.realize(scheduled.behaviour, scheduled.times)
+                if animation is not None:
+                    animations.append(animation)
+        except Exception as exc:  # a bug or an unforeseen value: the block fails, cleanly
+            self._emit(
+                warning(
+                    block.id,
+                    block.id,
+                    str(WarningType.CANNOT_CREATE_BEHAVIOR),
+                    f"block {block.id!r} could not be realized ({type(exc).__name__}); "
+                    "it is refused",
+                    now,
+                    self.character_id,
+                )
+            )
+            self._failed(block, start, lifecycle)
+            return None
+        for note in plan.warnings:
+            self._emit(warning(block.id, note.id, str(note.type), note.message, now,
+                               self.character_id))  # fmt: skip
+        self._emit(predicted)
+        self._blocks[block.id] = _Record(plan, lifecycle, deque(events), animations)
+        self._progress(now)
+        return plan
+
+    def _failed(self, block: Any, start: float, lifecycle: BlockLifecycle) -> None:
+        lifecycle.handle(BlockEvent.FAIL)
+        self._blocks[block.id] = _Record(TimedPlan(block, start, start, ()), lifecycle, deque())
+
+    def _events(self, plan: TimedPlan) -> list[_Event]:
+        """The block's feedback events, in the order of :data:`_Event`."""
         self._order += 1
         seq = self._order
         # Equal instants are equal as the feedback writes them (microseconds),
@@ -250,16 +282,7 @@ class Session:
                 events.append((round(time, 6), seq, 1, index, rank, "sync", scheduled.id, sync))
         events.append((round(plan.end, 6), seq, 2, 0, 0, "end", "", ""))
         events.sort()
-        animations = []
-        for scheduled in plan.behaviours:
-            if scheduled.id in plan.unrealized:
-                continue
-            animation = self.registry.realize(scheduled.behaviour, scheduled.times)
-            if animation is not None:
-                animations.append(animation)
-        self._blocks[block.id] = _Record(plan, lifecycle, deque(events), animations)
-        self._progress(now)
-        return plan
+        return events
 
     def interrupt(self, block_id: str, now: float) -> bool:
         """Interrupt a pending or running block; False (and a warning) if there is none."""

@@ -35,6 +35,8 @@ class ServiceLimits:
     does not read; over it, the submitter is closed with 1008.
     ``subscribe_backlog``: mesh messages waiting for one viewer (each
     subscribe asks for one); over it, the viewer is closed with 1008.
+    ``warnings_per_block``: warningFeedback messages about one block in
+    answer to one submission; the rest are counted in the last one.
     """
 
     message_bytes: int = 256 * 1024
@@ -46,6 +48,7 @@ class ServiceLimits:
     submitters: int = 64
     feedback_backlog: int = 4096
     subscribe_backlog: int = 4
+    warnings_per_block: int = 100
 
     def __post_init__(self) -> None:
         for name in self.__slots__:

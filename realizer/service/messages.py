@@ -31,7 +31,7 @@ PROTOCOL_VERSION = 1
 
 FeedbackFormat = Literal["xml", "json"]
 VertexEncoding = Literal["none", "float32", "int16"]
-BlockState = Literal["accepted", "rejected", "done", "interrupted"]
+BlockState = Literal["accepted", "rejected", "done", "interrupted", "failed"]
 
 
 # -- submitter, client to server ---------------------------------------------

@@ -16,6 +16,20 @@ created on first use, and answers
 * :meth:`Stage.tick`: advance every session once to ``now`` (one clock
   tick), returning each character's progress feedback and FAP frame.
 
+**Every accepted block ends** (the stage's guarantee, tested with
+hypothesis in ``tests/service/test_stage_properties.py``): for every
+``accepted`` :class:`BlockEvent` the stage returns, exactly one of
+``done``, ``interrupted`` or ``failed`` follows. Acceptance is the outcome
+of this very call (the session returned a plan), never read from feedback
+that may belong to an older block of the same id; a block is opened at its
+prediction, so a block whose end falls in the same call (an empty one) is
+``done`` in the same answer; a session that raises while planning gets the
+block refused (its prediction dropped); a session that fails while ticking
+has its open blocks failed and is replaced by a fresh one; and a block
+still open :data:`END_GRACE_SECONDS` after its predicted end (or after an
+interrupt) is failed. Warnings about one block in one answer are bounded
+(``ServiceLimits.warnings_per_block``).
+
 Time given to sessions never goes backwards: a BML document that arrives
 between the due time of a frame and the moment the clock computes it is
 received at its arrival time, and that frame is then computed at the same
@@ -138,14 +152,26 @@ class CharacterTick:
 class Character:
     """A character's session and the blocks the stage counts against limits.
 
-    ``open_blocks``: id -> session time it was accepted, until its end
-    feedback; ``interrupting``: ids of open blocks asked to stop.
+    ``open_blocks``: id -> session time it was accepted, until its end;
+    ``deadlines``: id -> session time by which an open block must have
+    ended (its predicted end and :data:`END_GRACE_SECONDS`), after which the
+    stage fails it; ``interrupting``: ids of open blocks asked to stop;
+    ``idle_since``: session time since which the character has had no open
+    block (None while it has one).
     """
 
     id: str
     session: SessionLike
     open_blocks: dict[str, float] = field(default_factory=dict)
+    deadlines: dict[str, float] = field(default_factory=dict)
     interrupting: set[str] = field(default_factory=set)
+    idle_since: float | None = None
+
+
+#: Seconds after its predicted end by which an accepted block must have
+#: ended; a block still open then is failed by the stage (its session lost
+#: it: a bug), so that every accepted block ends.
+END_GRACE_SECONDS = 1.0
 
 
 _ROOT_ID = re.compile(rb"<(?:\w+:)?bml\b[^>]*?\sid\s*=\s*[\"']([^\"']{0,200})[\"']")
@@ -256,29 +282,41 @@ class Stage:
             )
         messages: list[Outgoing] = []
         try:
-            found.session.receive_bml(parsed, now)  # parsed once, here
-        except RealizerError as exc:
-            # The contract says sessions queue warnings; a session that raises
-            # is answered the same way, and the service keeps going.
-            kind = getattr(exc, "warning_type", "CANNOT_CREATE_BEHAVIOR")
-            messages.extend(self._warning(target, block.id, now, str(kind), str(exc)))
-        produced = found.session.take_feedback()
-        accepted = any(
-            fb.block_id == block.id and fb.kind in ("prediction", "blockProgress")
-            for fb in produced
-        )
-        routed = self._route(found, produced)
-        if accepted:
-            found.open_blocks[block.id] = now
-            # "accepted" follows the block's prediction (or its first progress)
-            first = next(
-                i
-                for i, m in enumerate(routed)
-                if isinstance(m, WireFeedback)
-                and m.block_id == block.id
-                and m.kind in ("prediction", "blockProgress")
+            plan = found.session.receive_bml(parsed, now)  # parsed once, here
+        except Exception as exc:
+            # The contract says sessions queue warnings and return None; a
+            # session that raises is answered the same way, and the block is
+            # refused (whatever feedback it made for it is dropped, so no
+            # prediction of a block that will not run reaches the client).
+            plan = None
+            text = (
+                str(exc)
+                if isinstance(exc, RealizerError)
+                else f"internal error while planning block {block.id!r}; the block is refused"
             )
-            routed.insert(first + 1, BlockEvent(target, block.id, "accepted", now))
+            if not isinstance(exc, RealizerError):
+                logger.exception("session of character %r failed on block %r", target, block.id)
+            kind = str(getattr(exc, "warning_type", "CANNOT_CREATE_BEHAVIOR"))
+            produced = [
+                fb for fb in self._take(found) if fb.block_id != block.id or fb.kind == "warning"
+            ]
+            messages.extend(self._route(found, self._bounded(found.id, block.id, now, produced)))
+            messages.extend(self._end_lost_block(found, block.id, now))
+            messages.extend(self._warning(target, block.id, now, kind, text))
+            messages.append(BlockEvent(target, block.id, "rejected", now))
+            return SubmitResult(target, block.id, False, tuple(messages))
+        # Acceptance is this call's own outcome: a plan came back. Feedback
+        # of an older block with the same id (its start or end in this very
+        # call) says nothing about the new one.
+        accepted = plan is not None
+        produced = self._take(found)
+        routed = self._route(
+            found,
+            self._bounded(found.id, block.id, now, produced),
+            admit=block.id if accepted else None,
+            now=now,
+            plan_end=getattr(plan, "end", None),
+        )
         messages.extend(routed)
         if not accepted:
             messages.append(BlockEvent(target, block.id, "rejected", now))
@@ -301,7 +339,15 @@ class Stage:
             found.session.interrupt(block_id, now)
         except RealizerError as exc:
             messages.extend(self._warning(character_id, block_id, now, "NO_SUCH_TARGET", str(exc)))
-        messages.extend(self._route(found, found.session.take_feedback()))
+        except Exception:
+            logger.exception("session of character %r failed interrupting %r", found.id, block_id)
+        messages.extend(self._route(found, self._take(found)))
+        if block_id in found.open_blocks:
+            # an interrupted block ends now or soon; if its session never
+            # ends it, the stage fails it at this deadline
+            found.deadlines[block_id] = min(
+                found.deadlines.get(block_id, float("inf")), now + END_GRACE_SECONDS
+            )
         return tuple(messages)
 
     def interrupt_all(self, now: float) -> tuple[Outgoing, ...]:
@@ -318,33 +364,176 @@ class Stage:
         """Advance every session to ``now`` seconds; one entry per character."""
         now = self._advance(now)
         ticks: list[CharacterTick] = []
-        for found in self.characters.values():
+        for found in list(self.characters.values()):
             try:
                 found.session.tick(now)
                 messages = self._route(found, found.session.take_feedback())
                 frame = found.session.frame(now)
             except Exception:
                 # A failing session must not take every other character down
-                # with it: skip its frame this tick and say so in the log.
+                # with it: skip its frame this tick, say so in the log, fail
+                # its open blocks (each accepted block ends) and give the
+                # character a fresh session, so it accepts blocks again.
                 logger.exception("session of character %r failed at %.3f s", found.id, now)
+                lost = [
+                    *self._route(found, self._take(found)),
+                    *self._fail_all(found, now, "the character's session failed"),
+                ]
+                found.session = self.make_session(found.id)
+                try:
+                    fresh = found.session.frame(now)
+                except Exception:
+                    continue
+                ticks.append(CharacterTick(found.id, now, fresh, tuple(lost)))
                 continue
+            overdue = [b for b, deadline in found.deadlines.items() if deadline < now]
+            for block_id in overdue:
+                messages.extend(self._fail(found, block_id, now, "the block did not end in time"))
             ticks.append(CharacterTick(found.id, now, frame, tuple(messages)))
         return ticks
 
+    def forget_idle(self, now: float, idle_seconds: float, keep: Iterable[str] = ()) -> list[str]:
+        """Free characters that have had no open block for ``idle_seconds``.
+
+        ``keep`` names characters something still uses (a viewer, a
+        submitter that named it); returns the ids freed. The default
+        character is never freed.
+        """
+        kept = set(keep)
+        kept.add(self.default_character)
+        freed = [
+            c.id
+            for c in self.characters.values()
+            if c.id not in kept
+            and not c.open_blocks
+            and c.idle_since is not None
+            and now - c.idle_since >= idle_seconds
+        ]
+        for character_id in freed:
+            del self.characters[character_id]
+        return freed
+
     # -- helpers ----------------------------------------------------------------
 
-    def _route(self, found: Character, produced: Iterable[FeedbackLike]) -> list[Outgoing]:
+    @staticmethod
+    def _take(found: Character) -> list[FeedbackLike]:
+        try:
+            return list(found.session.take_feedback())
+        except Exception:
+            logger.exception("session of character %r failed giving feedback", found.id)
+            return []
+
+    def _route(
+        self,
+        found: Character,
+        produced: Iterable[FeedbackLike],
+        *,
+        admit: str | None = None,
+        now: float = 0.0,
+        plan_end: float | None = None,
+    ) -> list[Outgoing]:
+        """Feedback as wire messages, with the block events it implies.
+
+        ``admit``: the id of a block this call accepted. It is opened at its
+        prediction (so an end later in the same call, a zero-length block,
+        is its ``done``, and an end of an older block of that id before it
+        is not), and ``accepted`` follows the prediction.
+        """
         messages: list[Outgoing] = []
         for fb in produced:
             messages.append(WireFeedback(found.id, fb.kind, fb.block_id, fb.time, fb.xml))
+            if admit is not None and fb.block_id == admit and fb.kind == "prediction":
+                self._open(found, admit, now, plan_end)
+                messages.append(BlockEvent(found.id, admit, "accepted", now))
+                admit = None
+                continue
             if _is_block_end(fb) and fb.block_id in found.open_blocks:
                 del found.open_blocks[fb.block_id]
+                found.deadlines.pop(fb.block_id, None)
+                if not found.open_blocks:
+                    found.idle_since = fb.time
                 # interrupted by us, or by the session (a REPLACE block)
                 interrupted = fb.block_id in found.interrupting or _INTERRUPTED.search(fb.xml)
                 state: BlockState = "interrupted" if interrupted else "done"
                 found.interrupting.discard(fb.block_id)
                 messages.append(BlockEvent(found.id, fb.block_id, state, fb.time))
+        if admit is not None:  # accepted with no prediction (a session that makes none)
+            self._open(found, admit, now, plan_end)
+            messages.append(BlockEvent(found.id, admit, "accepted", now))
         return messages
+
+    def _open(self, found: Character, block_id: str, now: float, plan_end: float | None) -> None:
+        found.open_blocks[block_id] = now
+        found.idle_since = None
+        if plan_end is not None and plan_end == plan_end:  # not nan
+            found.deadlines[block_id] = max(now, float(plan_end)) + END_GRACE_SECONDS
+
+    def _fail(self, found: Character, block_id: str, now: float, why: str) -> list[Outgoing]:
+        """End an open block as ``failed``, with a warning, and stop what it animates."""
+        if block_id not in found.open_blocks:
+            return []
+        del found.open_blocks[block_id]
+        found.deadlines.pop(block_id, None)
+        found.interrupting.discard(block_id)
+        if not found.open_blocks:
+            found.idle_since = now
+        messages: list[Outgoing] = [
+            *self._warning(
+                found.id, block_id, now, "CANNOT_CREATE_BEHAVIOR", f"block {block_id!r}: {why}"
+            ),
+            BlockEvent(found.id, block_id, "failed", now),
+        ]
+        messages.extend(self._end_lost_block(found, block_id, now))
+        return messages
+
+    def _fail_all(self, found: Character, now: float, why: str) -> list[Outgoing]:
+        messages: list[Outgoing] = []
+        for block_id in list(found.open_blocks):
+            if block_id in found.open_blocks:
+                messages.extend(self._fail(found, block_id, now, why))
+        return messages
+
+    def _end_lost_block(self, found: Character, block_id: str, now: float) -> list[Outgoing]:
+        """Ask the session to stop a block the stage no longer counts (best
+        effort); the session's feedback about that block is dropped (the
+        client was told it failed or was rejected), the rest is routed."""
+        try:
+            found.session.interrupt(block_id, now)
+        except Exception:
+            logger.debug("could not interrupt lost block %r of %r", block_id, found.id)
+        return self._route(found, [fb for fb in self._take(found) if fb.block_id != block_id])
+
+    def _bounded(
+        self, character: str, block_id: str, now: float, produced: list[FeedbackLike]
+    ) -> list[FeedbackLike]:
+        """At most ``limits.warnings_per_block`` warnings about ``block_id``;
+        the rest are counted in one last warning."""
+        limit = self.limits.warnings_per_block
+        count = sum(1 for fb in produced if fb.kind == "warning" and fb.block_id == block_id)
+        if count <= limit:
+            return produced
+        kept: list[FeedbackLike] = []
+        seen = 0
+        for fb in produced:
+            if fb.kind == "warning" and fb.block_id == block_id:
+                seen += 1
+                if seen >= limit:
+                    continue
+            kept.append(fb)
+        more = count - limit + 1
+        xml = warning_feedback_xml(
+            block_id,
+            character,
+            "PARSING_FAILURE",
+            f"{more} more warnings about block {block_id!r} are not listed "
+            f"(limit of {limit} warnings per block)",
+        )
+        summary = WireFeedback(character, "warning", block_id, now, xml)
+        last_warning = max(
+            i for i, fb in enumerate(kept) if fb.kind == "warning" and fb.block_id == block_id
+        )
+        kept.insert(last_warning + 1, summary)
+        return kept
 
     def _warning(
         self, character: str, block_id: str, now: float, warning_type: str, text: str

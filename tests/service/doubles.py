@@ -23,6 +23,14 @@ class FakeFeedback:
     xml: str
 
 
+@dataclass(frozen=True, slots=True)
+class FakePlan:
+    """What a session returns for an accepted block: its span, seconds."""
+
+    start: float
+    end: float
+
+
 class FakeSession:
     """Each accepted block runs for ``duration`` seconds from ``now`` and sets
     FAP 12 (raise_l_cornerlip) to 100 while it runs."""
@@ -35,13 +43,14 @@ class FakeSession:
         self.started: set[str] = set()
         self.feedback: list[FakeFeedback] = []
 
-    def receive_bml(self, text: str | ParseResult, now: float) -> None:
+    def receive_bml(self, text: str | ParseResult, now: float) -> FakePlan:
         self.calls.append(("receive_bml", now))
         block = (text if isinstance(text, ParseResult) else parse_bml(text)).block
         self.running[block.id] = (now, now + self.duration)
         self.feedback.append(
             FakeFeedback("prediction", block.id, now, f'<predictionFeedback id="{block.id}"/>')
         )
+        return FakePlan(now, now + self.duration)
 
     def interrupt(self, block_id: str, now: float) -> None:
         self.calls.append(("interrupt", now))

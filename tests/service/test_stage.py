@@ -158,5 +158,11 @@ def test_a_failing_session_does_not_stop_the_other_characters(
     stage.submit_bml(smile_bml("a", character="bad"), 0.0)
     stage.submit_bml(smile_bml("b", character="good"), 0.0)
     ticks = stage.tick(0.1)
-    assert [t.character for t in ticks] == ["good"]
+    assert [t.character for t in ticks] == ["bad", "good"]
     assert "character 'bad' failed" in caplog.text
+    # every accepted block ends: the broken session's block fails, with a warning
+    bad = ticks[0]
+    events = [(m.block_id, m.state) for m in bad.messages if isinstance(m, BlockEvent)]
+    assert events == [("a", "failed")]
+    assert not bad.frame.mask.any()  # a fresh session: the neutral face
+    assert stage.submit_bml(smile_bml("c", character="bad"), 0.2).accepted
