@@ -16,12 +16,14 @@ import json
 import sys
 from typing import Any
 
+from realizer.commands import plain_text
+
 
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "emotion",
         help="print the FAP profile of an emotion",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--word", help="an emotion word, e.g. guilty")

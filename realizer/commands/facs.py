@@ -15,6 +15,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from realizer.commands import plain_text
+
 
 def fap_names() -> tuple[str, ...]:
     """FAP names of Tekalp and Ostermann 2000, Table 7 (the face's FAP table).
@@ -30,7 +32,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "facs",
         help="print the FAP values of FACS Action Units",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     parser.add_argument("aus", nargs="+", metavar="AU", help="e.g. 1 2 12L:0.8")
     parser.add_argument("--json", action="store_true", help="print a JSON object")

@@ -19,6 +19,8 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
+from realizer.commands import plain_text
+
 if TYPE_CHECKING:
     import numpy as np
     import numpy.typing as npt
@@ -187,7 +189,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "fap-sheet",
         help="render every FAP 3..68 of a face on one contact sheet (PNG)",
-        description=__doc__.split("\n\n")[0] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[0]) if __doc__ else None,
     )
     parser.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
     parser.add_argument(

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from realizer.commands import plain_text
+
 if TYPE_CHECKING:  # numpy is imported when a recording is made, not by `realizer --help`
     import numpy as np
     import numpy.typing as npt
@@ -24,7 +26,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "faps",
         help="write a BML block's FAP stream to a .fap file",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     parser.add_argument("file", type=Path, metavar="FILE.bml")
     parser.add_argument("-o", "--output", type=Path, required=True, help="the .fap file")

@@ -15,12 +15,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from realizer.commands import plain_text
+
 
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "parse",
         help="parse BML files and print their behaviours",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     parser.add_argument("files", nargs="+", type=Path, metavar="FILE")
     mode = parser.add_mutually_exclusive_group()

@@ -20,6 +20,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from realizer.commands import plain_text
+
 if TYPE_CHECKING:
     from realizer.bml_parser.groups import GroupMember
     from realizer.scheduler.plan import TimedPlan
@@ -71,7 +73,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "plot",
         help="draw a scheduled BML block as a Gantt chart",
-        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n", 1)[1]) if __doc__ else None,
     )
     parser.add_argument("file", type=Path, metavar="FILE")
     parser.add_argument("-o", "--output", type=Path, required=True, help="the PNG file")

@@ -10,12 +10,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from realizer.commands import plain_text
+
 
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "plot-faps",
         help="plot a BML block's FAP curves with its sync points",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     parser.add_argument("file", type=Path, metavar="FILE.bml")
     parser.add_argument("-o", "--output", type=Path, required=True, help="the PNG file")

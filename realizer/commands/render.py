@@ -17,6 +17,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from realizer.commands import plain_text
+
 VIDEO_SUFFIXES = (".mp4", ".mkv", ".webm", ".mov")
 
 
@@ -24,7 +26,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "render",
         help="render a BML block offscreen to a video or PNG files",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     parser.add_argument("file", type=Path, metavar="FILE.bml")
     parser.add_argument(

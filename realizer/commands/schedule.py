@@ -27,6 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from realizer.commands import plain_text
+
 if TYPE_CHECKING:
     from realizer.feedback import Feedback
     from realizer.scheduler.plan import TimedPlan
@@ -60,7 +62,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "schedule",
         help="solve BML blocks and print every sync point's time",
-        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n", 1)[1]) if __doc__ else None,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("files", nargs="+", type=Path, metavar="FILE")

@@ -13,12 +13,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from realizer.commands import plain_text
+
 
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "send",
         help="send a BML file to a running service and print its feedback",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     parser.add_argument("file", type=Path, metavar="FILE.bml")
     parser.add_argument("--host", default="127.0.0.1", help="service host (default 127.0.0.1)")
