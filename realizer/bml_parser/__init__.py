@@ -25,7 +25,7 @@ from realizer.bml_parser.errors import (
     WarningType,
 )
 from realizer.bml_parser.groups import ConstraintGroup, GroupMember, constraint_groups
-from realizer.bml_parser.nodes import Comment, ProcessingInstruction, XmlElement
+from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement
 from realizer.bml_parser.reader import DEFAULT_LIMITS, Limits, ParseResult, parse_bml
 from realizer.bml_parser.syncref import SyncRef, parse_sync_ref
 from realizer.bml_parser.tree import (
@@ -60,6 +60,7 @@ __all__ = [
     "Description",
     "GroupMember",
     "Limits",
+    "Node",
     "ParseResult",
     "ProcessingInstruction",
     "Relation",

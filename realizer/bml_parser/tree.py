@@ -25,6 +25,10 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from realizer.bml_parser.nodes import Comment, ProcessingInstruction, XmlElement
+
+# the fields these classes inherit from XmlElement are annotated with Node:
+# tools that resolve annotations (pdoc, typing.get_type_hints) look for it here
+from realizer.bml_parser.nodes import Node as Node
 from realizer.bml_parser.syncref import SyncRef
 
 

@@ -49,4 +49,6 @@ def __getattr__(name: str) -> Any:
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'realizer.face' has no attribute {name!r}")
-    return getattr(importlib.import_module(f"realizer.face.{module}"), name)
+    value = getattr(importlib.import_module(f"realizer.face.{module}"), name)
+    globals()[name] = value  # resolved once; later lookups skip this function
+    return value
