@@ -51,7 +51,11 @@ def test_syncs_at_one_instant_follow_the_canonical_order_not_the_alphabet() -> N
     session = Session()
     # attackPeak = start and relax = end: alphabetically attackPeak < end < relax < start
     session.receive_bml(
-        bml("b1", '<faceLexeme id="f" lexeme="SMILE" start="0" attackPeak="0" relax="1" end="1"/>'),
+        bml(
+            "b1",
+            '<faceLexeme id="f" lexeme="RAISE_MOUTH_CORNERS" start="0" attackPeak="0" '
+            'relax="1" end="1"/>',
+        ),
         now=0.0,
     )
     order = ids(session, 2.0)
@@ -78,7 +82,7 @@ def test_behaviours_at_one_instant_come_in_document_order() -> None:
         bml(
             "b1",
             '<head id="z" lexeme="NOD" start="0" end="1"/>'
-            '<head id="a" lexeme="SHAKE" start="0" end="1"/>',
+            '<faceLexeme id="a" lexeme="RAISE_MOUTH_CORNERS" start="0" end="1"/>',
         ),
         now=0.0,
     )

@@ -136,7 +136,7 @@ def test_an_optional_constraint_is_dropped_with_a_warning_naming_it() -> None:
     session = Session()
     body = (
         '<head id="a" lexeme="NOD" start="0" end="1"/>'
-        '<head id="b" lexeme="NOD" start="0" end="1"/>'
+        '<faceLexeme id="b" lexeme="RAISE_MOUTH_CORNERS" start="0" end="1"/>'  # no channel conflict
         '<constraint id="impossible">'
         '<before ref="a:start"><sync ref="b:end"/></before></constraint>'
     )

@@ -13,8 +13,11 @@ imports an engine and never special-cases a behaviour type.
 from __future__ import annotations
 
 import itertools
+import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cache
+from importlib import resources
 from typing import Any, Protocol
 
 from realizer.bml_parser import Behaviour
@@ -63,6 +66,13 @@ class EngineRegistry:
     def realize(self, behaviour: Behaviour, times: Mapping[str, float]) -> Any:
         return self.engine_for(behaviour).realize(behaviour, times)
 
+    def channels(self, behaviour: Behaviour) -> frozenset[str]:
+        """The resource channels the behaviour needs for itself (data/channels.toml)."""
+        by_type, by_lexeme = _channels()
+        lexeme = (behaviour.lexeme or "").upper()
+        found = by_lexeme.get((behaviour.type, lexeme))
+        return found if found is not None else by_type.get(behaviour.type, frozenset())
+
     @property
     def fap_limits(self) -> Any:
         """The face engine's FAP limits (for the mixer), or None without a face engine."""
@@ -71,6 +81,20 @@ class EngineRegistry:
             if limits is not None:
                 return limits
         return None
+
+
+@cache
+def _channels() -> tuple[dict[str, frozenset[str]], dict[tuple[str, str], frozenset[str]]]:
+    """(type -> channels, (type, lexeme) -> channels), loaded once."""
+    text = resources.files("realizer.engines").joinpath("data/channels.toml").read_text("utf-8")
+    raw: dict[str, Any] = tomllib.loads(text)
+    by_type = {kind: frozenset(names) for kind, names in raw["channels"].items()}
+    by_lexeme = {
+        (kind, lexeme): frozenset(names)
+        for kind, table in raw.get("lexemes", {}).items()
+        for lexeme, names in table.items()
+    }
+    return by_type, by_lexeme
 
 
 def _align(model: TimingModel, syncs: tuple[str, ...]) -> TimingModel:

@@ -23,12 +23,14 @@ already planned, given by the caller as fixed global times.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
 from realizer.bml_parser import Behaviour, Block, BmlWarning, SyncRef, WarningType
 from realizer.scheduler.solver import (
+    BLOCK_SOURCE,
     BLOCK_START,
     Infeasible,
     Key,
@@ -53,6 +55,10 @@ class Planner(Protocol):
 
     def plan_plain(self, behaviour: Behaviour) -> TimingModel:
         """A plain model for a behaviour whose own engine cannot plan it."""
+        ...
+
+    def channels(self, behaviour: Behaviour) -> frozenset[str]:
+        """The resource channels (body parts) the behaviour needs for itself."""
         ...
 
 
@@ -132,6 +138,12 @@ class _Builder:
     fixed: Mapping[Key, float]
     warnings: list[BmlWarning]
     order: dict[Source, int] = field(default_factory=dict)
+    #: every constraint of the last build as a difference edge ``t_v - t_u <= w``
+    #: with what it comes from in the user's words, to explain a conflict
+    edges: list[_Edge] = field(default_factory=list)
+    #: behaviours that a required part refers to: removing one would drop a
+    #: required reference, so a conflict that involves them fails the block
+    pinned: set[str] = field(default_factory=set)
 
     def warn(self, kind: WarningType, message: str, target: str = "") -> None:
         self.warnings.append(
@@ -177,15 +189,45 @@ class _Builder:
             return None
         return (ref.behaviour, name), ref.offset
 
+    def equal(
+        self, problem: Problem, a: Key, ka: float, b: Key, kb: float, source: Source, label: str
+    ) -> None:
+        """``t_a + ka == t_b + kb``, remembered with its label."""
+        problem.equal(a, ka, b, kb, source)
+        self.edges.append(_Edge(b, a, kb - ka, source, label))
+        self.edges.append(_Edge(a, b, ka - kb, source, label))
+        if source.required:
+            self.pinned.update(key[0] for key in (a, b) if key != BLOCK_START)
+
+    def order_(
+        self, problem: Problem, a: Key, ka: float, b: Key, kb: float, source: Source, label: str
+    ) -> None:
+        """``t_a + ka <= t_b + kb``, remembered with its label."""
+        problem.order(a, ka, b, kb, source)
+        self.edges.append(_Edge(b, a, kb - ka, source, label))
+        if source.required:
+            self.pinned.update(key[0] for key in (a, b) if key != BLOCK_START)
+
     def build(self, skip: set[str], dropped_constraints: set[Source]) -> Problem:
         problem = Problem()
         block = self.block
+        self.edges = []
+        self.pinned = set()
         for behaviour in block.behaviours:
             model = self.models.get(behaviour.id)
             if model is None or behaviour.id in skip:
                 continue
             source = self._source("behaviour", behaviour.id, behaviour.required)
             problem.add_behaviour(behaviour.id, model.syncs, model.phases, source)
+            for (first, second), phase in zip(
+                itertools.pairwise(model.syncs), model.phases, strict=True
+            ):
+                a, b = (behaviour.id, first), (behaviour.id, second)
+                self.edges.append(_Edge(b, a, -phase.minimum, source, _phase_label(
+                    behaviour.id, first, second, phase.minimum, "at least")))  # fmt: skip
+                if math.isfinite(phase.maximum):
+                    self.edges.append(_Edge(a, b, phase.maximum, source, _phase_label(
+                        behaviour.id, first, second, phase.maximum, "at most")))  # fmt: skip
             refs = list(behaviour.sync_refs)
             if behaviour.speech is not None:
                 refs += [(r.id, r.ref) for r in behaviour.speech.runs
@@ -196,7 +238,8 @@ class _Builder:
                     continue
                 key, offset = target
                 # t_sync = t_target + offset
-                problem.equal((behaviour.id, sync), 0.0, key, offset, source)
+                self.equal(problem, (behaviour.id, sync), 0.0, key, offset, source,
+                           f'{behaviour.id} {sync}="{ref.raw.strip()}"')  # fmt: skip
         for index, constraint in enumerate(block.constraints):
             source = self._source("constraint", constraint.id or f"#{index + 1}",
                                   constraint.required)  # fmt: skip
@@ -209,25 +252,89 @@ class _Builder:
                 live = [m for m in members if m is not None and m[0][0] not in skip]
                 if anchor is not None and anchor[0][0] in skip:
                     anchor = None
+                label = f"<{relation.kind}> of constraint {holder!r}" + (
+                    f' (ref="{relation.ref.raw.strip()}")' if relation.ref is not None else ""
+                )
                 if relation.kind == "synchronize":
                     chain = ([anchor] if anchor is not None else []) + live
                     for (a, ka), (b, kb) in itertools.pairwise(chain):
-                        problem.equal(a, ka, b, kb, source)
+                        self.equal(problem, a, ka, b, kb, source, label)
                 elif anchor is not None:
                     for key, offset in live:
                         if relation.kind == "before":  # the syncs lie before ref
-                            problem.order(key, offset, anchor[0], anchor[1], source)
+                            self.order_(problem, key, offset, anchor[0], anchor[1], source, label)
                         else:
-                            problem.order(anchor[0], anchor[1], key, offset, source)
+                            self.order_(problem, anchor[0], anchor[1], key, offset, source, label)
         for key, time in self.fixed.items():
             if key[0] not in skip and key in problem.keys:
-                problem.fix(key, time - self.start, Source("fixed", f"{key[0]}:{key[1]}", True))
+                fixed = Source("fixed", f"{key[0]}:{key[1]}", True)
+                self.equal(problem, key, 0.0, BLOCK_START, time - self.start, fixed,
+                           f"{key[0]}:{key[1]} already passed at {time:g} s")  # fmt: skip
         return problem
+
+    def explain(self, conflict: frozenset[Source]) -> list[str]:
+        """The constraints that conflict, in the user's words, in cycle order."""
+        edges = [e for e in self.edges if e.source in conflict]
+        keys = {k for e in edges for k in (e.u, e.v)} | {BLOCK_START}
+        edges += [_Edge(k, BLOCK_START, 0.0, BLOCK_SOURCE, "nothing happens before the block "
+                        "starts") for k in keys if k != BLOCK_START]  # fmt: skip
+        return _negative_cycle(keys, edges)
 
     def _source(self, kind: str, ident: str, required: bool) -> Source:
         source = Source(kind, ident, required)
         self.order.setdefault(source, len(self.order))
         return source
+
+
+@dataclass(frozen=True, slots=True)
+class _Edge:
+    """``t_v - t_u <= w``, from ``source``, described by ``label``."""
+
+    u: Key
+    v: Key
+    w: float
+    source: Source
+    label: str
+
+
+def _phase_label(behaviour: str, first: str, second: str, seconds: float, bound: str) -> str:
+    if bound == "at least" and seconds <= 0.0:
+        return f"{behaviour}: {second} cannot come before {first}"
+    return f"{behaviour} needs {bound} {seconds:.3g} s from {first} to {second}"
+
+
+def _negative_cycle(keys: set[Key], edges: list[_Edge]) -> list[str]:
+    """Labels along one negative cycle of ``edges`` (Bellman-Ford), or [].
+
+    Only run on a failure, over the edges of the conflicting sources.
+    """
+    distance = dict.fromkeys(keys, 0.0)
+    parent: dict[Key, _Edge] = {}
+    last: Key | None = None
+    for _ in range(len(keys) + 1):
+        last = None
+        for edge in edges:
+            if distance[edge.u] + edge.w < distance[edge.v] - 1e-9:
+                distance[edge.v] = distance[edge.u] + edge.w
+                parent[edge.v] = edge
+                last = edge.v
+        if last is None:
+            return []
+    assert last is not None
+    node: Key = last
+    for _ in range(len(keys)):
+        node = parent[node].u
+    labels: list[str] = []
+    start = node
+    while True:
+        edge = parent[node]
+        if edge.label not in labels:
+            labels.append(edge.label)
+        node = edge.u
+        if node == start:
+            break
+    labels.reverse()
+    return labels
 
 
 def _sync_name(ref: SyncRef) -> str:
@@ -286,13 +393,25 @@ def schedule_block(
             break
         except Infeasible as exc:
             del notes[mark:]  # the reference warnings are given again on the next build
-            victim = _choose_victim(exc.conflict, builder.order)
+            victim = _choose_victim(exc.conflict, builder.order, builder.pinned)
+            why = "; ".join(builder.explain(exc.conflict)) or exc.detail
             if victim is None:
                 names = ", ".join(sorted(str(s) for s in exc.conflict if s.kind != "block"))
+                pinned = sorted(
+                    s.id for s in exc.conflict
+                    if s.kind == "behaviour" and not s.required and s.id in builder.pinned
+                )  # fmt: skip
+                because = (
+                    f"; {', '.join(map(repr, pinned))} cannot be removed because a required "
+                    "part refers to it"
+                    if pinned
+                    else ""
+                )
                 notes.append(
                     BmlWarning(
                         WarningType.IMPOSSIBLE_TO_SCHEDULE,
-                        f"required parts cannot all be met ({names}); the block fails",
+                        f"required parts cannot all be met ({names}): these cannot hold "
+                        f"together: {why}{because}; the block fails",
                         id=block.id,
                     )
                 )
@@ -304,7 +423,8 @@ def schedule_block(
                 notes.append(
                     BmlWarning(
                         WarningType.IMPOSSIBLE_TO_SCHEDULE,
-                        f"the timing of {victim.id!r} cannot be met; the behaviour is removed",
+                        f"the timing of {victim.id!r} cannot be met ({why}); "
+                        "the behaviour is removed",
                         id=f"{block.id}:{victim.id}",
                     )
                 )
@@ -313,8 +433,8 @@ def schedule_block(
                 notes.append(
                     BmlWarning(
                         WarningType.IMPOSSIBLE_TO_SCHEDULE,
-                        f"constraint {victim.id!r} cannot be met together with the others; "
-                        "it is dropped",
+                        f"constraint {victim.id!r} cannot be met together with the others "
+                        f"({why}); it is dropped",
                         id=f"{block.id}:{victim.id}",
                     )
                 )
@@ -330,6 +450,10 @@ def schedule_block(
                 {sync: start + max(0.0, times[(behaviour.id, sync)]) for sync in model.syncs},
             )
         )
+    busy = _resolve_channels(block.id, behaviours, registry, notes)
+    if busy:
+        skip |= busy
+        behaviours = [b for b in behaviours if b.id not in busy]
     end = max((b.end for b in behaviours), default=start)
     return TimedPlan(
         block=block,
@@ -343,8 +467,78 @@ def schedule_block(
     )
 
 
-def _choose_victim(conflict: frozenset[Source], order: Mapping[Source, int]) -> Source | None:
-    droppable = [s for s in conflict if not s.required and s.kind in ("behaviour", "constraint")]
+#: Two behaviours overlap on a channel when they share more than this (seconds).
+CHANNEL_TOLERANCE = 1e-6
+
+
+def _resolve_channels(
+    block_id: str,
+    behaviours: list[ScheduledBehaviour],
+    registry: Planner,
+    notes: list[BmlWarning],
+) -> set[str]:
+    """Resource conflicts inside one block, by the policy of docs/scheduler.md.
+
+    Two behaviours that need one channel (``registry.channels``) at once:
+    when one's time span contains the other's (identical timing included),
+    the later in document order is removed with a warning (a required one is
+    kept and the other removed; two required ones both stay, with a
+    warning); when they only partly overlap, both run and a warning names
+    the overlap. Returns the ids removed. Quadratic in the behaviours that
+    share a channel, which blocks keep few of.
+    """
+    by_channel: dict[str, list[ScheduledBehaviour]] = {}
+    for scheduled in behaviours:
+        for channel in sorted(registry.channels(scheduled.behaviour)):
+            by_channel.setdefault(channel, []).append(scheduled)
+    removed: set[str] = set()
+    for channel, users in by_channel.items():
+        for later_index, later in enumerate(users):
+            for earlier in users[:later_index]:
+                if earlier.id in removed or later.id in removed:
+                    continue
+                lo, hi = max(earlier.start, later.start), min(earlier.end, later.end)
+                if hi - lo <= CHANNEL_TOLERANCE:
+                    continue
+                span = f"{lo:.3f} to {hi:.3f} s"
+                contains = (
+                    earlier.start <= later.start + CHANNEL_TOLERANCE
+                    and later.end <= earlier.end + CHANNEL_TOLERANCE
+                ) or (
+                    later.start <= earlier.start + CHANNEL_TOLERANCE
+                    and earlier.end <= later.end + CHANNEL_TOLERANCE
+                )
+                both = f"{earlier.id!r} and {later.id!r} both need the {channel} channel"
+                if not contains:
+                    notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                        f"{both} from {span} (a partial overlap); both run and their "
+                        "motions are mixed there", id=f"{block_id}:{later.id}"))  # fmt: skip
+                    continue
+                victim, kept = later, earlier
+                if later.behaviour.required and not earlier.behaviour.required:
+                    victim, kept = earlier, later
+                elif later.behaviour.required:
+                    notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                        f"{both} from {span}; both are required, so both run",
+                        id=f"{block_id}:{later.id}"))  # fmt: skip
+                    continue
+                removed.add(victim.id)
+                notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                    f"{both} from {span}; {victim.id!r} is removed and {kept.id!r} keeps it",
+                    id=f"{block_id}:{victim.id}"))  # fmt: skip
+    return removed
+
+
+def _choose_victim(
+    conflict: frozenset[Source], order: Mapping[Source, int], pinned: set[str]
+) -> Source | None:
+    droppable = [
+        s
+        for s in conflict
+        if not s.required
+        and s.kind in ("behaviour", "constraint")
+        and not (s.kind == "behaviour" and s.id in pinned)
+    ]
     if not droppable:
         return None
     behaviours = {s.id for s in conflict if s.kind == "behaviour"}

@@ -316,10 +316,12 @@ def test_broken_document_never_reaches_the_scheduler(name: str) -> None:
     assert caught.value.warning_type is WarningType.PARSING_FAILURE
 
 
-def test_a_behaviour_in_the_way_of_a_required_constraint_is_removed() -> None:
+def test_a_behaviour_a_required_constraint_refers_to_is_not_removed_the_block_fails() -> None:
     # after_required.xml plus a required <before>: nod1's stroke must come
     # after speech1:sync4 and before speech1's start, which only the speech's
-    # own (not required) timing prevents; the speech goes, with a warning.
+    # own (not required) timing prevents. Removing the speech would run the
+    # required constraints with their references to it dropped, so the block
+    # fails instead, naming what conflicts.
     text = (
         FILES["after_required.xml"]
         .read_text()
@@ -329,11 +331,12 @@ def test_a_behaviour_in_the_way_of_a_required_constraint_is_removed() -> None:
             '<sync ref="nod1:stroke"/></before></constraint></required></bml>',
         )
     )
-    plan = schedule_block(parse_bml(text).block, registry=EngineRegistry.standard())
-    assert plan.dropped == {"speech1"}
-    assert [(w.type, w.id) for w in plan.warnings] == [
-        (WarningType.IMPOSSIBLE_TO_SCHEDULE, "bml1:speech1")
-    ]
+    with pytest.raises(SchedulingFailed) as caught:
+        schedule_block(parse_bml(text).block, registry=EngineRegistry.standard())
+    [warning] = caught.value.warnings
+    assert warning.type is WarningType.IMPOSSIBLE_TO_SCHEDULE and warning.id == "bml1"
+    assert "<before> of constraint 'early'" in warning.message
+    assert "'speech1' cannot be removed because a required part refers to it" in warning.message
 
 
 def pin(constraint_id: str, seconds: float) -> str:
