@@ -24,6 +24,7 @@ blocks already planned (``bml1:nod1:end``); they are fixed times for it.
 from __future__ import annotations
 
 import enum
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
@@ -90,14 +91,15 @@ class BlockLifecycle:
         return self.state
 
 
-#: A feedback event still to report: (global time, block sequence number,
-#: kind rank (0 start, 1 sync, 2 end), behaviour index in the block, sync
-#: index in the behaviour's canonical order, kind, behaviour id, sync name).
+#: A feedback event still to report: (global time rounded to the microsecond,
+#: block sequence number, kind rank (0 start, 1 sync, 2 end), behaviour
+#: index in the block, sync index in the behaviour's canonical order, kind,
+#: behaviour id, sync name, exact global time).
 #: Sorting by the tuple gives the documented same-instant order: time, then
 #: the order blocks arrived in (so a block's end comes before the start of
 #: the block appended after it), then block start, sync points (behaviours
 #: in document order, each in its canonical order), block end.
-_Event = tuple[float, int, int, int, int, str, str, str]
+_Event = tuple[float, int, int, int, int, str, str, str, float]
 
 
 @dataclass(slots=True)
@@ -274,13 +276,15 @@ class Session:
         seq = self._order
         # Equal instants are equal as the feedback writes them (microseconds),
         # not as the solver's floating point happens to leave them.
-        events: list[_Event] = [(round(plan.start, 6), seq, 0, 0, 0, "start", "", "")]
+        events: list[_Event] = [(round(plan.start, 6), seq, 0, 0, 0, "start", "", "", plan.start)]
         for index, scheduled in enumerate(plan.behaviours):
             canonical = scheduled.behaviour.syncs
             for sync, time in scheduled.times.items():
                 rank = canonical.index(sync) if sync in canonical else len(canonical)
-                events.append((round(time, 6), seq, 1, index, rank, "sync", scheduled.id, sync))
-        events.append((round(plan.end, 6), seq, 2, 0, 0, "end", "", ""))
+                events.append(
+                    (round(time, 6), seq, 1, index, rank, "sync", scheduled.id, sync, time)
+                )
+        events.append((round(plan.end, 6), seq, 2, 0, 0, "end", "", "", plan.end))
         events.sort()
         return events
 
@@ -370,10 +374,14 @@ class Session:
     def _progress(self, now: float) -> None:
         due: list[tuple[_Event, str]] = []
         for block_id, record in self._blocks.items():
-            while record.events and record.events[0][0] <= now + 1e-12:
+            while record.events and record.events[0][-1] <= now + 1e-12:
                 due.append((record.events.popleft(), block_id))
         due.sort()
-        for (time, *_, kind, behaviour_id, sync), block_id in due:
+        previous = -math.inf
+        for (*_, kind, behaviour_id, sync, exact), block_id in due:
+            # Events of one microsecond keep the documented order; their exact
+            # times, a round-off apart, are made non-decreasing with it.
+            time = previous = max(exact, previous)
             record = self._blocks[block_id]
             if kind == "start":
                 record.lifecycle.handle(BlockEvent.START)
