@@ -49,12 +49,14 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.linalg.lapack import dgesv as _dgesv
 from scipy.sparse.csgraph import (
     NegativeCycleError,
     breadth_first_order,
@@ -220,12 +222,27 @@ def find_conflict(problem: Problem) -> frozenset[Source] | None:
 # -- the QP ----------------------------------------------------------------------
 
 
+#: Problems with at most this many sync points take the dense path
+#: (:func:`solve_dense`): below it, building scipy.sparse objects costs more
+#: than the dense linear algebra they would save.
+DENSE_KEYS = 160
+
+
 def solve(problem: Problem) -> dict[Key, float]:
     """The optimal time of every sync point, seconds after the block start.
 
     Raises :class:`Infeasible` with the conflicting sources when the
-    constraints cannot all hold.
+    constraints cannot all hold. Small problems (up to :data:`DENSE_KEYS`
+    sync points) take :func:`solve_dense`, the others :func:`solve_sparse`;
+    both give the same times.
     """
+    if len(problem.keys) <= DENSE_KEYS:
+        return solve_dense(problem)
+    return solve_sparse(problem)
+
+
+def solve_sparse(problem: Problem) -> dict[Key, float]:
+    """:func:`solve` on sparse matrices, vectorised: the path for big blocks."""
     keys = list(problem.keys)
     key_index = {key: index for index, key in enumerate(keys)}
     # One pass over the phases and one over the equalities (Python loops
@@ -389,6 +406,258 @@ def solve(problem: Problem) -> dict[Key, float]:
     return dict(zip(keys, times.tolist(), strict=True))
 
 
+# -- the dense path for small problems -------------------------------------------
+
+
+def solve_dense(problem: Problem) -> dict[Key, float]:
+    """:func:`solve` for small problems: the same method on dense matrices.
+
+    A block of a few behaviours is a few dozen sync points, for which the
+    sparse path spends nearly all its time building scipy.sparse objects
+    and array temporaries around a tiny system. Here the bookkeeping
+    (equality classes by a weighted union-find, cost components, the rows)
+    is plain Python over the problem's lists, and the linear algebra is
+    numpy's dense solve. The method is the sparse path's step for step (the
+    optimum without inequalities shifted to start at 0, then the
+    primal-dual active-set method and the polish); should the active-set
+    method cycle, the problem goes to :func:`solve_sparse`, whose fallback
+    always ends. Results equal the sparse path's (tests compare them on
+    random problems).
+    """
+    keys = list(problem.keys)
+    n_keys = len(keys)
+    key_index = {key: index for index, key in enumerate(keys)}
+    # Equality classes with offsets, t_key = t_root + offset: a weighted
+    # union-find over the ties t_a - t_b = d (sync references, fixed times,
+    # rigid phases).
+    parent = list(range(n_keys))
+    offset = [0.0] * n_keys
+
+    def find(x: int) -> int:
+        path = []
+        while parent[x] != x:
+            path.append(x)
+            x = parent[x]
+        total = 0.0
+        for y in reversed(path):  # nearest the root first
+            total += offset[y]
+            offset[y] = total
+            parent[y] = x
+        return x
+
+    ties = [(key_index[r.a], key_index[r.b], r.kb - r.ka) for r in problem.equalities]
+    phases = [
+        (key_index[a], key_index[b], p.weight, p.preferred, p.minimum, p.maximum, source)
+        for a, b, p, source in problem.phases
+    ]
+    ties += [(b, a, low) for a, b, _, _, low, high, _ in phases if high - low <= TOLERANCE]
+    for a, b, d in ties:
+        ra, rb = find(a), find(b)
+        if ra == rb:
+            if abs(offset[a] - offset[b] - d) > TOLERANCE:
+                conflict = find_conflict(problem)
+                raise Infeasible(conflict or frozenset(), "contradictory equalities")
+        else:  # t_ra - t_rb = d + offset_b - offset_a
+            parent[ra] = rb
+            offset[ra] = d + offset[b] - offset[a]  # a root's own offset is 0
+    roots = [find(k) for k in range(n_keys)]  # also flattens: offset[k] is to its root
+    for k in range(n_keys):
+        if roots[k] == k:
+            offset[k] = 0.0
+    block = key_index[BLOCK_START]
+    pinned = roots[block]
+    pinned_value = -offset[block]
+    # Cost components: classes (roots) linked by phases.
+    components = _Forest(n_keys)
+    for a, b, *_ in phases:
+        components.union(roots[a], roots[b])
+    pinned_comp = components.find(pinned)
+    # Variables: every class but the pinned one; t_key = x[var[key]] + const[key].
+    var_of_root: dict[int, int] = {}
+    for root in roots:
+        if root != pinned and root not in var_of_root:
+            var_of_root[root] = len(var_of_root)
+    n = len(var_of_root)
+    var = [var_of_root.get(root, -1) for root in roots]
+    const = [o + pinned_value if v < 0 else o for o, v in zip(offset, var, strict=True)]
+
+    # Objective: sum w (x_i - x_j + c)^2 over phases (i: the later point)
+    # and one start-early pull per free component, as 1/2 x'Hx + g'x.
+    pulled: list[int] = []
+    seen_comps: set[int] = set()
+    for start in problem.starts:
+        k = key_index[start]
+        comp = components.find(roots[k])
+        if comp not in seen_comps:
+            seen_comps.add(comp)
+            if comp != pinned_comp:
+                pulled.append(k)
+    var_arr = np.array(var, dtype=np.int64)
+    const_arr = np.array(const)
+    table = np.array([row[:6] for row in phases], dtype=float).reshape(-1, 6)
+    phase_a, phase_b = table[:, 0].astype(np.int64), table[:, 1].astype(np.int64)
+    phase_w, phase_min, phase_max = table[:, 2], table[:, 4], table[:, 5]
+    pulled_keys = np.array(pulled, dtype=np.int64)
+    n_phase, n_pulled = len(phases), len(pulled)
+    pull = PULL * (float(phase_w.mean()) if n_phase else 1.0)
+    term_i = np.concatenate([var_arr[phase_b], var_arr[pulled_keys]])
+    term_j = np.concatenate([var_arr[phase_a], np.full(n_pulled, -1, dtype=np.int64)])
+    term_c = np.concatenate(
+        [const_arr[phase_b] - const_arr[phase_a] - table[:, 3], const_arr[pulled_keys]]
+    )
+    term_w = 2.0 * np.concatenate([phase_w, np.full(n_pulled, pull)])
+    hessian, gradient = _dense_quadratic(n, term_i, term_j, term_c, term_w)
+
+    # Rows x_i - x_j >= b: orderings, phase bounds, and t >= 0 on the earliest
+    # key of every class (the pinned class: a plain check).
+    earliest: dict[int, int] = {}
+    for k, root in enumerate(roots):
+        if root == pinned:
+            if offset[k] + pinned_value < -TOLERANCE:
+                conflict = find_conflict(problem)
+                raise Infeasible(
+                    conflict or frozenset({BLOCK_SOURCE}), "a fixed time breaks a bound"
+                )
+        elif root not in earliest or offset[k] < offset[earliest[root]]:
+            earliest[root] = k
+    orderings = problem.orderings
+    stretchy = np.isfinite(phase_max) & (phase_max - phase_min > TOLERANCE)
+    earliest_keys = np.array(list(earliest.values()), dtype=np.int64)
+    upper = np.concatenate(
+        [
+            np.array([key_index[r.b] for r in orderings], dtype=np.int64),
+            phase_b,
+            phase_a[stretchy],
+            earliest_keys,
+        ]
+    )
+    lower = np.concatenate(
+        [
+            np.array([key_index[r.a] for r in orderings], dtype=np.int64),
+            phase_a,
+            phase_b[stretchy],
+        ]
+    )
+    minimum = np.concatenate(
+        [np.array([r.ka - r.kb for r in orderings]), phase_min, -phase_max[stretchy]]
+    )
+    n_plain = lower.size  # the rows after these are t >= 0 on earliest keys
+    row_i = var_arr[upper]
+    row_j = np.concatenate([var_arr[lower], np.full(earliest_keys.size, -1, dtype=np.int64)])
+    b_all = np.concatenate(
+        [minimum - const_arr[upper[:n_plain]] + const_arr[lower], -const_arr[earliest_keys]]
+    )
+    constant = row_i == row_j
+    if constant.any():
+        broken = np.flatnonzero(constant & (b_all > TOLERANCE))
+        if broken.size:
+            sources = [r.source for r in orderings] + [row[6] for row in phases]
+            first_broken = int(broken[0])
+            conflict = find_conflict(problem)
+            raise Infeasible(
+                conflict or frozenset({sources[min(first_broken, len(sources) - 1)]}),
+                "a fixed time breaks a bound",
+            )
+        keep = ~constant
+        row_i, row_j, b_all = row_i[keep], row_j[keep], b_all[keep]
+    m = b_all.size
+    matrix = _incidence(row_i, row_j, n)
+    b_rows = b_all
+
+    x, _ = _dense_kkt(hessian, gradient, matrix, [], b_rows)
+    if x is None:
+        raise SchedulingError("the scheduler's cost matrix is singular")
+    # Each free component moved so that its earliest point is at the block start.
+    comp_of_var = [0] * n
+    for root, v in var_of_root.items():
+        comp_of_var[v] = components.find(root)
+    values = x.tolist()
+    first: dict[int, float] = {}
+    for v, c in zip(var, const, strict=True):
+        if v >= 0:
+            comp = comp_of_var[v]
+            if comp != pinned_comp:
+                t = values[v] + c
+                if comp not in first or t < first[comp]:
+                    first[comp] = t
+    if first:
+        x = x - np.array([first.get(comp, 0.0) for comp in comp_of_var])
+    if m and float((matrix @ x - b_rows).min()) < -TOLERANCE:
+        solved = _primal_dual_active_set(
+            hessian, gradient, matrix, row_i, row_j, b_rows, x, kkt=_dense_kkt
+        )
+        if solved is None:
+            return solve_sparse(problem)
+        if not pulled:
+            x = solved[0]  # nothing was pulled: already the exact optimum
+        else:
+            exact = _dense_quadratic(
+                n, term_i[:n_phase], term_j[:n_phase], term_c[:n_phase], term_w[:n_phase]
+            )
+            pulled_vars = var_arr[pulled_keys]
+            comp_array = np.array(comp_of_var, dtype=np.int64)
+            x = _polish(
+                exact, matrix, row_i, row_j, b_rows, solved[1], solved[0], pulled_vars,
+                comp_array, pinned_comp, kkt=_dense_kkt,
+            )  # fmt: skip
+    values = x.tolist()
+    return {
+        key: (values[v] + c if v >= 0 else c) for key, v, c in zip(keys, var, const, strict=True)
+    }
+
+
+def _dense_quadratic(
+    n: int, i: np.ndarray, j: np.ndarray, c: np.ndarray, w2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Dense H and g of sum w2/2 (x_i - x_j + c)^2 as 1/2 x'Hx + g'x (index -1: absent).
+
+    Summed by ``bincount``, not as D'WD: a matrix product goes to the
+    threaded BLAS, which on a busy machine costs a hundred times more.
+    """
+    has_i, has_j = i >= 0, j >= 0
+    both = has_i & has_j
+    ii, jj, bi, bj = i[has_i], j[has_j], i[both], j[both]
+    wi, wj, wb = w2[has_i], w2[has_j], w2[both]
+    flat = np.concatenate([ii * (n + 1), jj * (n + 1), bi * n + bj, bj * n + bi])
+    hessian = np.bincount(flat, np.concatenate([wi, wj, -wb, -wb]), n * n).reshape(n, n)
+    gradient = np.bincount(ii, wi * c[has_i], n) - np.bincount(jj, wj * c[has_j], n)
+    return hessian, gradient
+
+
+def _incidence(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
+    """The dense m x n matrix of rows ``x_i - x_j`` (index -1: absent)."""
+    columns = np.arange(n)
+    matrix: np.ndarray = (columns == i[:, None]).astype(float) - (columns == j[:, None])
+    return matrix
+
+
+def _dense_kkt(
+    hessian: Any,
+    gradient: np.ndarray,
+    matrix: Any,
+    working: list[int],
+    b: np.ndarray,
+    quiet: bool = False,
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """:func:`_kkt` on dense matrices, by LAPACK's LU solve (a singular system gives None)."""
+    n = hessian.shape[0]
+    if n == 0:
+        return np.zeros(0), (np.zeros(len(working)) if working else None)
+    if not working:
+        *_, solution, info = _dgesv(hessian, -gradient)
+        return (solution, None) if info == 0 and np.isfinite(solution).all() else (None, None)
+    active = matrix[working]
+    k = len(working)
+    kkt = np.zeros((n + k, n + k))
+    kkt[:n, :n] = hessian
+    kkt[:n, n:] = -active.T
+    kkt[n:, :n] = active
+    *_, solution, info = _dgesv(kkt, np.concatenate([-gradient, b[working]]))
+    if info != 0 or not np.isfinite(solution).all():
+        return None, None
+    return solution[:n], solution[n : n + k]
+
+
 def _eliminate(
     n_keys: int, eq_a: np.ndarray, eq_b: np.ndarray, eq_d: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -495,6 +764,7 @@ def _primal_dual_active_set(
     rj: np.ndarray,
     b: np.ndarray,
     x: np.ndarray,
+    kkt: Callable[..., tuple[np.ndarray | None, np.ndarray | None]] | None = None,
 ) -> tuple[np.ndarray, list[int]] | None:
     """The primal-dual active-set method (Hintermüller, Ito and Kunisch 2002).
 
@@ -506,14 +776,16 @@ def _primal_dual_active_set(
     can still cycle on general rows, so it gives up (None) on a repeated
     working set or after :data:`PDAS_STEPS` steps, and the caller falls
     back to the primal active-set method. Returns x and the working rows.
+    ``kkt``: the KKT solver (:func:`_kkt`, or :func:`_dense_kkt` on dense matrices).
     """
+    kkt = kkt or _kkt
     n = x.size
     active = (matrix @ x - b) < -TOLERANCE
     seen: set[bytes] = set()
     multipliers = np.zeros(b.size)
     for _ in range(PDAS_STEPS):
         working = _independent(ri, rj, np.flatnonzero(active).tolist(), n)
-        solution, lam = _kkt(hessian, gradient, matrix, working, b, quiet=True)
+        solution, lam = kkt(hessian, gradient, matrix, working, b, quiet=True)
         if solution is None:
             return None
         multipliers[:] = 0.0
@@ -672,6 +944,7 @@ def _polish(
     pulled: np.ndarray,
     var_comp: np.ndarray,
     pinned_comp: int,
+    kkt: Callable[..., tuple[np.ndarray | None, np.ndarray | None]] | None = None,
 ) -> np.ndarray:
     """Solve the final working set again without the pull.
 
@@ -698,14 +971,18 @@ def _polish(
         if group not in held:
             held.add(group)
             hold.append(int(v))
-    extra = sp.csr_matrix(
-        (np.ones(len(hold)), (np.arange(len(hold)), np.asarray(hold, dtype=np.int64))),
-        shape=(len(hold), n),
-    )
-    augmented = sp.vstack([matrix, extra], format="csr")
+    augmented: Any
+    if kkt is None:
+        extra = sp.csr_matrix(
+            (np.ones(len(hold)), (np.arange(len(hold)), np.asarray(hold, dtype=np.int64))),
+            shape=(len(hold), n),
+        )
+        augmented = sp.vstack([matrix, extra], format="csr")
+    else:  # dense
+        augmented = np.vstack([matrix, np.eye(n)[hold]])
     bounds = np.concatenate([b, x[hold]])
     rows = working + list(range(b.size, b.size + len(hold)))
-    polished, _ = _kkt(exact[0], exact[1], augmented, rows, bounds, quiet=True)
+    polished, _ = (kkt or _kkt)(exact[0], exact[1], augmented, rows, bounds, quiet=True)
     if polished is not None and (matrix @ polished - b).min(initial=0.0) >= -1e-7:
         return polished
     return x
