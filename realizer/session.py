@@ -29,8 +29,6 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from realizer.bml_parser import BmlError, Limits, ParseResult, WarningType, parse_bml
 from realizer.engines import EngineRegistry
 from realizer.errors import RealizerError
@@ -42,6 +40,21 @@ from realizer.feedback import (
     warning,
 )
 from realizer.scheduler.plan import SchedulingFailed, TimedPlan, schedule_block
+
+_UNSET: Any = object()
+_MIXER: tuple[Any, Any] | None = None
+
+
+def _face_mixer() -> tuple[Any, Any]:
+    """``(FapFrame, mix)``, imported on the first frame (a session without a
+    face never loads the face package) and kept for every later one."""
+    global _MIXER
+    if _MIXER is None:
+        from realizer.face.frame import FapFrame
+        from realizer.face.tracks import mix
+
+        _MIXER = (FapFrame, mix)
+    return _MIXER
 
 
 class BlockState(enum.Enum):
@@ -141,8 +154,16 @@ class Session:
         self.limits = limits or SessionLimits()
         self.now = float("-inf")
         self._blocks: dict[str, _Record] = {}
+        # What a tick looks at: records with events to report or animations
+        # to show (pending, running, or finished and still fading). Finished
+        # blocks kept only for queries are not here, so a tick costs the
+        # same however many of them are kept.
+        self._live: list[_Record] = []
+        # Finished records, oldest first, for forgetting beyond the limit.
+        self._finished: deque[_Record] = deque()
         self._feedback: list[Feedback] = []
         self._order = 0
+        self._fap_limits: Any = _UNSET  # the registry's, looked up on the first frame
 
     # -- queries -----------------------------------------------------------
 
@@ -262,13 +283,17 @@ class Session:
             self._emit(warning(block.id, note.id, str(note.type), note.message, now,
                                self.character_id))  # fmt: skip
         self._emit(predicted)
-        self._blocks[block.id] = _Record(plan, lifecycle, deque(events), animations)
+        record = _Record(plan, lifecycle, deque(events), animations)
+        self._blocks[block.id] = record
+        self._live.append(record)
         self._progress(now)
         return plan
 
     def _failed(self, block: Any, start: float, lifecycle: BlockLifecycle) -> None:
         lifecycle.handle(BlockEvent.FAIL)
-        self._blocks[block.id] = _Record(TimedPlan(block, start, start, ()), lifecycle, deque())
+        failed = _Record(TimedPlan(block, start, start, ()), lifecycle, deque())
+        self._blocks[block.id] = failed
+        self._finished.append(failed)
 
     def _events(self, plan: TimedPlan) -> list[_Event]:
         """The block's feedback events, in the order of :data:`_Event`."""
@@ -307,6 +332,7 @@ class Session:
             return False
         was_running = record.lifecycle.state is BlockState.IN_EXECUTION
         record.lifecycle.handle(BlockEvent.INTERRUPT)
+        self._finished.append(record)
         record.events.clear()
         if was_running:
             from realizer.face.tracks import InterruptedAnimation
@@ -336,14 +362,14 @@ class Session:
 
     def frame(self, now: float) -> Any:
         """The face's FAP frame at ``now``: the mix of every animation active then."""
-        from realizer.face.frame import FapFrame
-        from realizer.face.tracks import mix
-
-        animations = [a for r in self._blocks.values() for a in r.animations]
+        frame_type, mix = _face_mixer()
+        animations = [a for r in self._live for a in r.animations]
         if not animations:
-            return FapFrame.neutral(time=now)
-        values, mask = mix(animations, now, self.registry.fap_limits)
-        return FapFrame(np.asarray(values), np.asarray(mask), time=now)
+            return frame_type.neutral(time=now)
+        if self._fap_limits is _UNSET:
+            self._fap_limits = self.registry.fap_limits
+        values, mask = mix(animations, now, self._fap_limits)
+        return frame_type(values, mask, time=now)
 
     # -- internals ---------------------------------------------------------
 
@@ -355,34 +381,48 @@ class Session:
         self._feedback.append(feedback)
 
     def _forget(self, now: float) -> None:
-        """Drop animations that have ended and the oldest finished blocks."""
-        finished = []
-        for block_id, record in self._blocks.items():
+        """Drop animations that have ended and the oldest finished blocks.
+
+        Costs what the live blocks cost: finished blocks kept for queries are
+        only touched when one is forgotten.
+        """
+        dropped = False
+        for record in self._live:
             if record.lifecycle.state in ACTIVE:
                 continue
             if record.animations:
                 record.animations = [a for a in record.animations if a.end >= now]
-            finished.append(block_id)
-        excess = len(finished) - self.limits.finished_kept
-        for block_id in finished:
-            if excess <= 0:
-                break
-            if not self._blocks[block_id].animations:
+            if not record.animations and not record.events:
+                dropped = True
+        if dropped:
+            self._live = [
+                r for r in self._live if r.lifecycle.state in ACTIVE or r.animations or r.events
+            ]
+        finished = self._finished
+        while len(finished) > self.limits.finished_kept:
+            oldest = finished[0]
+            if oldest.animations:
+                break  # still fading out; forgotten on a later tick
+            finished.popleft()
+            block_id = oldest.lifecycle.block_id
+            if self._blocks.get(block_id) is oldest:  # not a newer block of that id
                 del self._blocks[block_id]
-                excess -= 1
 
     def _progress(self, now: float) -> None:
-        due: list[tuple[_Event, str]] = []
-        for block_id, record in self._blocks.items():
-            while record.events and record.events[0][-1] <= now + 1e-12:
-                due.append((record.events.popleft(), block_id))
-        due.sort()
+        due: list[tuple[_Event, _Record]] = []
+        for record in self._live:
+            events = record.events
+            while events and events[0][-1] <= now + 1e-12:
+                due.append((events.popleft(), record))
+        if not due:
+            return
+        due.sort(key=lambda item: item[0])
         previous = -math.inf
-        for (*_, kind, behaviour_id, sync, exact), block_id in due:
+        for (*_, kind, behaviour_id, sync, exact), record in due:
             # Events of one microsecond keep the documented order; their exact
             # times, a round-off apart, are made non-decreasing with it.
             time = previous = max(exact, previous)
-            record = self._blocks[block_id]
+            block_id = record.lifecycle.block_id
             if kind == "start":
                 record.lifecycle.handle(BlockEvent.START)
                 self._emit(block_progress(block_id, "start", time, self.character_id, "IN_EXEC"))
@@ -399,4 +439,5 @@ class Session:
                 )
             else:
                 record.lifecycle.handle(BlockEvent.FINISH)
+                self._finished.append(record)
                 self._emit(block_progress(block_id, "end", time, self.character_id, "DONE"))

@@ -258,3 +258,33 @@ def test_a_long_running_session_forgets_old_finished_blocks() -> None:
                                now=now)  # fmt: skip
     assert plan is not None and not plan.warnings
     assert not session.frame(now + 50).mask.any()  # ended animations no longer mix
+
+
+def test_a_tick_looks_only_at_live_blocks_not_at_the_finished_ones_kept() -> None:
+    # The per-frame cost must not grow with the finished blocks kept for
+    # queries: they leave the set a tick walks once their animations end.
+    session = Session(limits=SessionLimits(finished_kept=64))
+    now = 0.0
+    for index in range(64):
+        session.receive_bml(bml(f"b{index}", NOD), now=now)
+        now += 1.5
+        session.tick(now)
+    assert all(session.state(f"b{i}") is BlockState.DONE for i in range(64))
+    session.receive_bml(bml("playing", NOD), now=now)
+    assert [r.lifecycle.block_id for r in session._live] == ["playing"]
+    session.tick(now + 0.3)
+    assert session.frame(now + 0.3).mask.any()
+
+
+def test_forgetting_an_old_block_keeps_a_newer_block_of_the_same_id() -> None:
+    session = Session(limits=SessionLimits(finished_kept=1))
+    session.receive_bml(bml("again", NOD), now=0.0)
+    session.tick(1.5)
+    assert session.state("again") is BlockState.DONE
+    long = '<faceLexeme id="f" lexeme="RAISE_BROWS" start="0" end="10"/>'
+    session.receive_bml(bml("again", long), now=1.5)  # the id is used once more
+    session.receive_bml(bml("short", NOD), now=1.5)
+    session.tick(3.0)  # "short" finished: the first "again" is one too many
+    assert session.state("short") is BlockState.DONE
+    assert session.state("again") is BlockState.IN_EXECUTION
+    assert session.frame(3.0).mask.any()

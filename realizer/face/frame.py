@@ -39,7 +39,7 @@ class FapFrame:
             raise FapValueError(
                 f"a FapFrame has (68,) values and mask, not {values.shape} and {mask.shape}"
             )
-        if not np.all(np.isfinite(values)):
+        if not np.isfinite(values).all():
             raise FapValueError("FAP values must be finite")
         values.setflags(write=False)
         mask.setflags(write=False)

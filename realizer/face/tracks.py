@@ -33,6 +33,7 @@ A FAP is set in the result where any animation has a weight above 0.
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
@@ -165,10 +166,16 @@ class FapAnimation:
     priority: int = 0
     blend: Blend = "add"
     behaviour_id: str = ""
+    # add_to's data: the set FAPs' indices and values.
+    _index: npt.NDArray[np.intp] = field(init=False, repr=False)
+    _values: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.blend not in BLENDS:
             raise ConversionError(f"unknown blend {self.blend!r}")
+        index = np.flatnonzero(self.target.mask)
+        object.__setattr__(self, "_index", index)
+        object.__setattr__(self, "_values", np.asarray(self.target.values, dtype=float)[index])
 
     @property
     def start(self) -> float:
@@ -186,6 +193,13 @@ class FapAnimation:
         weights = np.where(self.target.mask, self.envelope.level_at(now), 0.0)
         return self.target.values.copy(), weights
 
+    def add_to(self, values: FloatArray, mask: BoolArray, now: float) -> None:
+        """What :func:`mix` does with an ``add`` animation, on its own FAPs only."""
+        level = self.envelope.level_at(now)
+        if level > 0.0:
+            values[self._index] += level * self._values
+            mask[self._index] = True
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class KeyframeAnimation:
@@ -201,6 +215,11 @@ class KeyframeAnimation:
     blend: Blend = "add"
     behaviour_id: str = ""
     _index: npt.NDArray[np.intp] = field(init=False, repr=False)
+    # The scalar path of evaluate (one call per frame): times as floats,
+    # each segment's start values and change, the constant weights.
+    _times: tuple[float, ...] = field(init=False, repr=False)
+    _steps: FloatArray = field(init=False, repr=False)
+    _weights: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if self.times.ndim != 1 or self.times.size < 2:
@@ -210,7 +229,14 @@ class KeyframeAnimation:
         if np.any(np.diff(self.times) < -TIME_EPSILON_S):
             raise ConversionError("keyframe times must ascend")
         check_curve(self.curve)
-        object.__setattr__(self, "_index", np.asarray(self.faps, dtype=np.intp) - 1)
+        index = np.asarray(self.faps, dtype=np.intp) - 1
+        object.__setattr__(self, "_index", index)
+        object.__setattr__(self, "_times", tuple(self.times.tolist()))
+        object.__setattr__(self, "_steps", np.diff(self.values, axis=0))
+        weights = np.zeros(FAP_COUNT)
+        weights[index] = 1.0
+        weights.setflags(write=False)
+        object.__setattr__(self, "_weights", weights)
 
     @property
     def start(self) -> float:
@@ -231,12 +257,36 @@ class KeyframeAnimation:
         return v0 + (v1 - v0) * u
 
     def evaluate(self, now: float) -> tuple[FloatArray, FloatArray]:
+        """Values and weights at ``now``: :meth:`sample` for one time, without arrays of times.
+
+        The weights are one shared read-only array (the same at every moment).
+        """
         values = np.zeros(FAP_COUNT)
-        weights = np.zeros(FAP_COUNT)
-        if self.start <= now <= self.end:
-            values[self._index] = self.sample(now)[0]
-            weights[self._index] = 1.0
-        return values, weights
+        times = self._times
+        if not times[0] <= now <= times[-1]:
+            return values, np.zeros(FAP_COUNT)
+        last = len(times) - 2
+        segment = min(max(bisect.bisect_right(times, now) - 1, 0), last)
+        t0 = times[segment]
+        u = (now - t0) / max(times[segment + 1] - t0, TIME_EPSILON_S)
+        u = min(max(u, 0.0), 1.0)
+        if self.curve == "hermite":
+            u = u * u * (3.0 - 2.0 * u)
+        values[self._index] = self.values[segment] + self._steps[segment] * u
+        return values, self._weights
+
+    def add_to(self, values: FloatArray, mask: BoolArray, now: float) -> None:
+        """What :func:`mix` does with an ``add`` animation, on its own FAPs only."""
+        times = self._times
+        if not times[0] <= now <= times[-1]:
+            return
+        segment = min(max(bisect.bisect_right(times, now) - 1, 0), len(times) - 2)
+        t0 = times[segment]
+        u = min(max((now - t0) / max(times[segment + 1] - t0, TIME_EPSILON_S), 0.0), 1.0)
+        if self.curve == "hermite":
+            u = u * u * (3.0 - 2.0 * u)
+        values[self._index] += self.values[segment] + self._steps[segment] * u
+        mask[self._index] = True
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -305,10 +355,13 @@ class FapLimits:
         return cls(limits.lower, limits.upper)
 
     def clamp(self, values: FloatArray) -> FloatArray:
-        return np.clip(values, self.lower, self.upper)
+        # np.minimum/np.maximum: np.clip's Python wrapper costs more than the work.
+        return np.minimum(np.maximum(values, self.lower), self.upper)
 
 
 def _order(animations: Iterable[Animation]) -> list[Animation]:
+    if isinstance(animations, list) and len(animations) < 2:
+        return animations
     indexed = list(enumerate(animations))
     indexed.sort(key=lambda pair: (pair[1].priority, pair[1].start, pair[0]))
     return [animation for _, animation in indexed]
@@ -324,18 +377,24 @@ def mix(
     for animation in _order(animations):
         if not animation.start <= now <= animation.end:
             continue
+        blend = getattr(animation, "blend", "add")
+        add_to = getattr(animation, "add_to", None) if blend == "add" else None
+        if add_to is not None:  # the same sum, on the animation's own FAPs only
+            add_to(values, mask, now)
+            continue
         target, weights = animation.evaluate(now)
         active = weights > 0.0
-        if not active.any():
-            continue
-        if getattr(animation, "blend", "add") == "replace":
+        if blend == "replace":
             values = np.where(active, (1.0 - weights) * values + weights * target, values)
         else:
-            values = values + np.where(active, weights * target, 0.0)
+            # Where a weight is 0 nothing is added (np.where, not a product:
+            # an unset target value need not be finite).
+            values += np.where(active, weights * target, 0.0)
         mask |= active
     if limits is not None:
         values = limits.clamp(values)
-    return np.where(mask, values, 0.0), mask
+    values[~mask] = 0.0
+    return values, mask
 
 
 def sample(
