@@ -122,6 +122,8 @@ class _Record:
     # still to report, in the order of :data:`_Event`'s rank
     events: deque[_Event]
     animations: list[Any] = field(default_factory=list)
+    #: speech audio (AudioClip) on the session clock
+    audio: list[Any] = field(default_factory=list)
 
 
 @dataclass(frozen=True, slots=True)
@@ -258,13 +260,20 @@ class Session:
                 self.character_id,
             )
             events = self._events(plan)
-            animations = []
+            animations: list[Any] = []
+            audio: list[Any] = []
             for scheduled in plan.behaviours:
                 if scheduled.id in plan.unrealized:
                     continue
-                animation = self.registry.realize(scheduled.behaviour, scheduled.times)
-                if animation is not None:
-                    animations.append(animation)
+                realized = self.registry.realize(scheduled.behaviour, scheduled.times)
+                if realized is None:
+                    continue
+                # A speech realizes as several animations (lip sync) and audio.
+                parts = getattr(realized, "parts", None)
+                animations.extend(parts if parts is not None else (realized,))
+                clip = getattr(realized, "audio", None)
+                if clip is not None:
+                    audio.append(clip)
         except Exception as exc:  # a bug or an unforeseen value: the block fails, cleanly
             self._emit(
                 warning(
@@ -282,8 +291,13 @@ class Session:
         for note in plan.warnings:
             self._emit(warning(block.id, note.id, str(note.type), note.message, now,
                                self.character_id))  # fmt: skip
+        for scheduled in plan.behaviours:
+            for text in self.registry.notes(scheduled.behaviour):
+                self._emit(warning(block.id, f"{block.id}:{scheduled.id}",
+                                   str(WarningType.CANNOT_CREATE_BEHAVIOR),
+                                   f"{scheduled.id}: {text}", now, self.character_id))  # fmt: skip
         self._emit(predicted)
-        record = _Record(plan, lifecycle, deque(events), animations)
+        record = _Record(plan, lifecycle, deque(events), animations, audio)
         self._blocks[block.id] = record
         self._live.append(record)
         self._progress(now)
@@ -343,6 +357,8 @@ class Session:
             ]
         else:
             record.animations = []
+        # The audio stops now: what a viewer has not been sent is never sent.
+        record.audio = [clip.cut(now) for clip in record.audio] if was_running else []
         status = "INTERRUPTED" if was_running else "REVOKED"
         self._emit(block_progress(block_id, "end", now, self.character_id, status))
         return True
@@ -371,6 +387,22 @@ class Session:
         values, mask = mix(animations, now, self._fap_limits)
         return frame_type(values, mask, time=now)
 
+    def audio(self, start: float, end: float, sample_rate: int = 22050) -> Any:
+        """The character's speech audio over ``[start, end)`` seconds, or None if silent there.
+
+        Returns an :class:`~realizer.engines.speech.AudioClip` of mono PCM16
+        at ``sample_rate``: every speech clip sounding then, mixed (and
+        clipped to 16 bits). Sample ``i`` of the whole clock is at
+        ``i / sample_rate`` seconds, so consecutive calls whose ``start`` is
+        the previous ``end`` join without a gap or an overlap.
+        """
+        clips = [c for r in self._live for c in r.audio if c.end > start and c.start < end]
+        if not clips:
+            return None
+        from realizer.engines.speech.mixing import mix_audio
+
+        return mix_audio(clips, start, end, sample_rate)
+
     # -- internals ---------------------------------------------------------
 
     def _advance(self, now: float) -> None:
@@ -392,11 +424,15 @@ class Session:
                 continue
             if record.animations:
                 record.animations = [a for a in record.animations if a.end >= now]
-            if not record.animations and not record.events:
+            if record.audio:
+                record.audio = [clip for clip in record.audio if clip.end >= now]
+            if not record.animations and not record.events and not record.audio:
                 dropped = True
         if dropped:
             self._live = [
-                r for r in self._live if r.lifecycle.state in ACTIVE or r.animations or r.events
+                r
+                for r in self._live
+                if r.lifecycle.state in ACTIVE or r.animations or r.events or r.audio
             ]
         finished = self._finished
         while len(finished) > self.limits.finished_kept:

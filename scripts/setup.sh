@@ -10,10 +10,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # Debian packages: OSMesa and EGL for offscreen OpenGL rendering, ffmpeg for
-# video output, Chromium and its driver for the browser viewer's end-to-end test.
+# video output, eSpeak NG (library and voices) for speech, Chromium and its
+# driver for the browser viewer's end-to-end test.
 APT_PACKAGES=(
     libosmesa6 libgl1 libegl1 libgl1-mesa-dri libglu1-mesa
     ffmpeg
+    libespeak-ng1 espeak-ng-data
     chromium chromium-driver
     npm
 )

@@ -82,6 +82,10 @@ _REPEATS_LISTED = 4
 _COLUMN_WINDOW = 1 << 16
 
 
+#: The XML namespace's language attribute (BML 1.0 speech language).
+_XML_LANG = "{http://www.w3.org/XML/1998/namespace}lang"
+
+
 @dataclass(frozen=True, slots=True)
 class Limits:
     """Named limits on one BML document; over one, the block is refused.
@@ -505,6 +509,8 @@ class _Reader:
                 params.append((name, value))
             elif name == "id":
                 continue
+            elif name == _XML_LANG and spec.type == "speech":
+                params.append(("lang", value))
             elif name[0] == "{":
                 self.warn(
                     WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
@@ -522,6 +528,14 @@ class _Reader:
                     behaviour_id,
                     needle=f"{name}=",
                 )
+        if spec.type == "speech" and el.get(_XML_LANG) is None:
+            # BML 1.0: a speech's language is its own xml:lang, else the
+            # nearest enclosing element's (the block's).
+            for ancestor in el.iterancestors():
+                lang = ancestor.get(_XML_LANG)
+                if lang is not None:
+                    params.append(("lang", lang))
+                    break
         if spec.required:
             present = {name for name, _ in params}
             missing = [name for name in spec.required if name not in present]

@@ -44,7 +44,7 @@ class EngineRegistry:
         from realizer.engines.face import FaceEngine
         from realizer.engines.speech import SpeechEngine
 
-        return cls([FaceEngine.default(), SpeechEngine()])
+        return cls([FaceEngine.default(), SpeechEngine.default()])
 
     def engine_for(self, behaviour: Behaviour) -> Engine:
         for engine in self.engines:
@@ -63,6 +63,11 @@ class EngineRegistry:
         """The default engine's model, for a behaviour its own engine cannot plan."""
         return self.default.plan(behaviour)
 
+    def notes(self, behaviour: Behaviour) -> tuple[str, ...]:
+        """What the behaviour's engine has to say about how it planned it (for warnings)."""
+        notes = getattr(self.engine_for(behaviour), "notes", None)
+        return tuple(notes(behaviour)) if notes is not None else ()
+
     def realize(self, behaviour: Behaviour, times: Mapping[str, float]) -> Any:
         return self.engine_for(behaviour).realize(behaviour, times)
 
@@ -76,9 +81,11 @@ class EngineRegistry:
     @property
     def fap_limits(self) -> Any:
         """The face engine's FAP limits (for the mixer), or None without a face engine."""
+        from realizer.face.tracks import FapLimits
+
         for engine in self.engines:
             limits = getattr(engine, "limits", None)
-            if limits is not None:
+            if isinstance(limits, FapLimits):
                 return limits
         return None
 

@@ -374,7 +374,8 @@ def mix(
     docstring; returns ``(values (68,), mask (68,))``."""
     values = np.zeros(FAP_COUNT)
     mask = np.zeros(FAP_COUNT, dtype=bool)
-    for animation in _order(animations):
+    ordered = _order(animations)
+    for animation in ordered:
         if not animation.start <= now <= animation.end:
             continue
         blend = getattr(animation, "blend", "add")
@@ -391,6 +392,12 @@ def mix(
             # an unset target value need not be finite).
             values += np.where(active, weights * target, 0.0)
         mask |= active
+    for animation in ordered:
+        # An animation may constrain the mixed result (lip closure on p, b,
+        # m must hold whatever opened the jaw, docs/speech.md).
+        constrain = getattr(animation, "constrain", None)
+        if constrain is not None and animation.start <= now <= animation.end:
+            values = constrain(values, now)
     if limits is not None:
         values = limits.clamp(values)
     values[~mask] = 0.0

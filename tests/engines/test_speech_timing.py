@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import pytest
 
 from realizer.bml_parser import BML_NS, SpeechText, parse_bml
 from realizer.engines import EngineRegistry
 from realizer.engines.speech import SpeechEngine
-from realizer.engines.speech.timing import RateSpeechTiming, SpeechPlan, syllables
+from realizer.engines.speech.timing import RateSpeechTiming, syllables
 from realizer.scheduler.plan import schedule_block
 
 
@@ -84,23 +82,17 @@ def test_the_model_is_deterministic() -> None:
     assert RateSpeechTiming().plan(text) == RateSpeechTiming().plan(text)
 
 
-@dataclass(frozen=True, slots=True)
-class FixedTts:
-    """A stand-in for a real synthesiser: every marker at 1 s apart, 5 s long."""
-
-    def plan(self, text: SpeechText) -> SpeechPlan:
-        markers = {name: 1.0 + index for index, name in enumerate(text.sync_ids)}
-        return SpeechPlan(duration=5.0, markers=markers, phonemes=(("h", 0.0, 0.1),))
-
-
-def test_a_real_tts_replaces_the_model_through_the_engine() -> None:
+def test_the_real_tts_times_the_markers_through_the_engine() -> None:
     block = parse_bml(
         f'<bml xmlns="{BML_NS}" id="b"><speech id="s"><text>{TEXT}</text></speech>'
         '<head id="nod1" lexeme="NOD" stroke="s:c"/></bml>'
     ).block
-    registry = EngineRegistry([SpeechEngine(timing=FixedTts())])
-    plan = schedule_block(block, registry=registry)
-    assert plan.time_of("s", "a") == pytest.approx(1.0)
-    assert plan.time_of("s", "c") == pytest.approx(3.0)
-    assert plan.time_of("s", "end") == pytest.approx(5.0)
-    assert plan.time_of("nod1", "stroke") == pytest.approx(3.0)
+    engine = SpeechEngine.default()
+    assert engine.backend is not None, engine.unavailable
+    plan = schedule_block(block, registry=EngineRegistry([engine]))
+    synthesis = engine.synthesis(block.behaviours[0])
+    assert synthesis is not None
+    for marker in ("a", "b", "c"):
+        assert plan.time_of("s", marker) == pytest.approx(synthesis.markers[marker], abs=1e-6)
+    assert plan.time_of("s", "end") == pytest.approx(synthesis.duration, abs=1e-6)
+    assert plan.time_of("nod1", "stroke") == pytest.approx(synthesis.markers["c"], abs=1e-6)
