@@ -11,13 +11,15 @@ cd "$(dirname "$0")/.."
 
 # Debian packages: OSMesa and EGL for offscreen OpenGL rendering, ffmpeg for
 # video output, eSpeak NG (library and voices) for speech, Chromium and its
-# driver for the browser viewer's end-to-end test.
+# driver for the browser viewer's end-to-end test, Node and its ws package for
+# the JavaScript client's tests.
 APT_PACKAGES=(
     libosmesa6 libgl1 libegl1 libgl1-mesa-dri libglu1-mesa
     ffmpeg
     libespeak-ng1 espeak-ng-data
     chromium chromium-driver
     npm
+    nodejs node-ws
 )
 
 if [ "${REALIZER_SKIP_APT:-0}" != "1" ] && command -v apt-get >/dev/null 2>&1; then
