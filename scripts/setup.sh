@@ -42,9 +42,6 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q -e '.[dev,all]'
-# pyrender pins PyOpenGL==3.1.0, which breaks OSMesa; install it without its
-# pins (its real dependencies are in the `render` extra).
-.venv/bin/python -m pip install -q --no-deps 'pyrender==0.1.45'
 # three.js for the browser viewer, from npm into a gitignored folder
 bash scripts/vendor_three.sh
 echo "setup: done. Try: .venv/bin/realizer --help"
