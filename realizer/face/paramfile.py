@@ -18,7 +18,11 @@ centre); ``cosine-deformer`` (raised cosine); ``transform-deformer``
 pivot-fp falloff``); ``dilate-deformer`` and ``roll-deformer`` (pupils,
 tongue roll: ``part x y z scale`` and a pivot); ``facedef-mesh fap target
 intervals`` with ``displacement vertex="i"`` children ("dx dy dz, dx dy dz"
-per interval). Units: metres, and percent for smooth-center/-side.
+per interval), or, with ``encoding="float16"``, two compact children:
+``vertices`` (base64 little-endian int32) and ``displacements`` (base64
+little-endian float16, vertices x intervals x 3; FAPU per FAP unit, where a
+thousandth of the feature point's motion is precision enough). Units:
+metres, and percent for smooth-center/-side.
 
 Lossless: :func:`read_parameters` keeps the text it read in
 ``FaceParameters.source``; :func:`write_parameters` merges the current
@@ -35,6 +39,8 @@ the pair.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -209,6 +215,9 @@ def _read_deformer(element: Any) -> DeformerSetting:
         borders = tuple(float(x) for x in r.text("intervals").replace(",", " ").split())
         vertices: list[int] = []
         displacements: list[tuple[tuple[float, float, float], ...]] = []
+        encoding = r.text("encoding", "text")
+        if encoding == "float16":
+            return _binary_facedef(element, r, fap, borders)
         for child in element:
             if not isinstance(child.tag, str) or child.tag != "displacement":
                 continue
@@ -229,6 +238,45 @@ def _read_deformer(element: Any) -> DeformerSetting:
         except Exception as exc:
             raise FaceFileError(f"{r.where}: {exc}") from exc
     raise FaceFileError(f"{r.where}: not a deformer")  # pragma: no cover
+
+
+def _binary_facedef(element: Any, r: Any, fap: int, borders: tuple[float, ...]) -> FaceDefMesh:
+    """A FaceDefMesh stored compactly: ``<vertices>`` holds the vertex
+    indices as base64 little-endian int32, ``<displacements>`` the
+    displacements as base64 little-endian float16, (vertices, intervals, 3)."""
+    texts: dict[str, str] = {}
+    for child in element:
+        if isinstance(child.tag, str) and child.tag in ("vertices", "displacements"):
+            texts[child.tag] = "".join((child.text or "").split())
+    if set(texts) != {"vertices", "displacements"}:
+        raise FaceFileError(
+            f"{r.where}: a float16 facedef-mesh needs <vertices> and <displacements>"
+        )
+    try:
+        index = np.frombuffer(base64.b64decode(texts["vertices"], validate=True), dtype="<i4")
+        values = np.frombuffer(base64.b64decode(texts["displacements"], validate=True), dtype="<f2")
+    except (ValueError, binascii.Error) as exc:
+        raise FaceFileError(f"{r.where}: bad base64 or array size: {exc}") from None
+    intervals = max(len(borders) - 1, 1)
+    if values.size != index.size * intervals * 3:
+        raise FaceFileError(
+            f"{r.where}: {index.size} vertices x {intervals} intervals need "
+            f"{index.size * intervals * 3} displacements, not {values.size}"
+        )
+    if not np.all(np.isfinite(values)) or (index.size and index.min() < 0):
+        raise FaceFileError(f"{r.where}: displacements must be finite, vertices >= 0")
+    rows = values.astype(np.float64).reshape(index.size, intervals, 3).tolist()
+    try:
+        return FaceDefMesh(
+            fap,
+            borders,
+            tuple(int(i) for i in index),
+            tuple(tuple((d[0], d[1], d[2]) for d in row) for row in rows),
+            r.text("target", "Face"),
+            "float16",
+        )
+    except Exception as exc:
+        raise FaceFileError(f"{r.where}: {exc}") from exc
 
 
 def _deformer_attributes(setting: DeformerSetting) -> dict[str, str]:
@@ -278,10 +326,14 @@ def _deformer_attributes(setting: DeformerSetting) -> dict[str, str]:
     elif isinstance(setting, FaceDefMesh):
         attrs["target"] = setting.target
         attrs["intervals"] = " ".join(_fmt(b) for b in setting.intervals)
+        if setting.encoding != "text":
+            attrs["encoding"] = setting.encoding
     return attrs
 
 
-_OPTIONAL_ATTRIBUTES = ("part", "fp", "pivot-x", "pivot-y", "pivot-z", "pivot-fp", "falloff")
+_OPTIONAL_ATTRIBUTES = (
+    "part", "fp", "pivot-x", "pivot-y", "pivot-z", "pivot-fp", "falloff", "encoding",
+)  # fmt: skip
 
 
 def _fill_deformer(element: Any, setting: DeformerSetting) -> None:
@@ -293,8 +345,23 @@ def _fill_deformer(element: Any, setting: DeformerSetting) -> None:
         element.set(name, value)
     if isinstance(setting, FaceDefMesh):
         for child in list(element):
-            if isinstance(child.tag, str) and child.tag == "displacement":
+            if isinstance(child.tag, str) and child.tag in (
+                "displacement", "vertices", "displacements",
+            ):  # fmt: skip
                 element.remove(child)
+        if setting.encoding == "float16":
+            table = np.asarray(setting.displacements, dtype=np.float64)
+            packed = table.astype("<f2")
+            if not np.array_equal(packed.astype(np.float64), table):
+                raise FaceFileError(
+                    f"FaceDefMesh of FAP {setting.fap}: float16 encoding needs float16 values"
+                )
+            index = np.asarray(setting.vertices, dtype="<i4")
+            child = etree.SubElement(element, "vertices")
+            child.text = base64.b64encode(index.tobytes()).decode("ascii")
+            child = etree.SubElement(element, "displacements")
+            child.text = base64.b64encode(packed.tobytes()).decode("ascii")
+            return
         for vertex, rows in zip(setting.vertices, setting.displacements, strict=True):
             child = etree.SubElement(element, "displacement", vertex=str(vertex))
             child.text = ", ".join(" ".join(_fmt(c) for c in row) for row in rows)

@@ -312,8 +312,10 @@ void main() {
         float along = smoothstep(-0.1, 0.08, s) * (1.0 - smoothstep(0.9, 1.06, s));
         float w = max(fwidth(t), 0.08);
         float core = 1.0 - smoothstep(half_width - 2.0 * w, half_width + w, abs(t));
-        float hairs = 0.93 + 0.07 * sin(s * 97.0 + t * 0.9);
-        float brow = clamp(core * along * hairs, 0.0, 1.0);
+        // denser low and towards the inner end, as brow hair grows
+        float density = mix(1.0, 0.72, clamp(s, 0.0, 1.0))
+                      * mix(1.0, 0.8, clamp(t / 3.0, 0.0, 1.0));
+        float brow = clamp(core * along * density, 0.0, 1.0);
         albedo = mix(albedo, brow_rgb, 0.9 * brow);
         float ls = v_lines.z;
         float lt = v_lines.w;
@@ -409,6 +411,19 @@ def _polyline_coordinates(
     return best_s, best_t
 
 
+def _smooth_curve(
+    a: npt.NDArray[np.float64], b: npt.NDArray[np.float64], c: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
+    """A polyline of 17 points on the parabola-like curve through ``a``,
+    ``b`` (its middle) and ``c`` (a quadratic Bezier with its control point
+    placed so that the curve passes through ``b``), so brows and lash lines
+    have no kink at the middle feature point."""
+    control = 2.0 * b - 0.5 * (a + c)
+    t = np.linspace(0.0, 1.0, 17)[:, None]
+    curve: npt.NDArray[np.float64] = (1 - t) ** 2 * a + 2 * t * (1 - t) * control + t**2 * c
+    return curve
+
+
 def surface_attributes(
     face: RenderableFace,
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.float32]]:
@@ -483,17 +498,15 @@ def surface_attributes(
         behind = v[side, 2] < fp[outer_][2] - 0.03
         # The brow's centre line runs just below its upper edge (4.3 is the
         # arch's uppermost point).
-        brow = np.array([
-            fp[inner_][:2] - lift * 0.2,
-            fp[middle_][:2] - lift * 1.2,
-            fp[outer_][:2] - lift * 0.8,
-        ])  # fmt: skip
+        brow = _smooth_curve(
+            fp[inner_][:2] - lift * 0.2, fp[middle_][:2] - lift * 1.2, fp[outer_][:2] - lift * 0.8
+        )
         s, t = _polyline_coordinates(v[side, :2], brow)
         lines[side, 0] = np.where(behind, 9.0, s)
         lines[side, 1] = np.clip(t * 1000.0, -20.0, 20.0)
         # The upper lash line: along the upper lid margin between the corners,
         # on the front of the lid (not inside the eye socket's pocket).
-        lid = np.array([fp[lid_corners[0]][:2], fp[lid_top][:2], fp[lid_corners[1]][:2]])
+        lid = _smooth_curve(fp[lid_corners[0]][:2], fp[lid_top][:2], fp[lid_corners[1]][:2])
         s, t = _polyline_coordinates(v[side, :2], lid)
         socket = v[side, 2] < fp[lid_top][2] - 0.006
         lines[side, 2] = np.where(behind | socket, 9.0, s)

@@ -103,7 +103,10 @@ def test_the_face_is_ordered_from_chin_to_skull(face: Face) -> None:
         for n in ("2.1", "2.10", "8.2", "2.3", "8.1", "9.15", "9.3", "3.5", "4.3", "11.1", "11.4")
     ]
     assert heights == sorted(heights)
-    assert fp(face, "2.3")[1] <= fp(face, "2.2")[1] + 1e-4  # lips closed at rest
+    # lips closed at rest: the inner midpoints meet (the lower lip's tucks
+    # just behind and above the upper one's, as pressed lips do)
+    assert abs(fp(face, "2.3")[1] - fp(face, "2.2")[1]) < 0.001
+    assert fp(face, "2.3")[2] < fp(face, "2.2")[2]
     assert fp(face, "3.3")[1] < fp(face, "3.5")[1] < fp(face, "3.1")[1]
     assert fp(face, "9.10")[1] < fp(face, "9.8")[1] and fp(face, "9.9")[1] < fp(face, "9.11")[1]
     assert fp(face, "9.3")[2] == max(p[2] for p in face.params.feature_points.values())
@@ -162,6 +165,12 @@ def test_fapu_have_human_proportions(face: Face) -> None:
     assert 0.04 < fapu.mw * 1024 < 0.06
 
 
+#: Inner and outer lip-corner FAPs whose feature points are one place on the
+#: default face (scripts/extract_default_face.py, CORNER_PAIRS): each carries
+#: half the corner's motion.
+CORNER_PAIRS = {6: 53, 53: 6, 7: 54, 54: 7, 12: 59, 59: 12, 13: 60, 60: 13}
+
+
 @pytest.mark.parametrize("fap", [n for n in range(3, 69) if FAP_TABLE[n].axis is not None])
 def test_each_translational_fap_moves_its_feature_point_by_value_times_fapu(
     face: Face, fap: int
@@ -169,14 +178,25 @@ def test_each_translational_fap_moves_its_feature_point_by_value_times_fapu(
     info = FAP_TABLE[fap]
     value = 200.0
     offsets = moved(face, fap, value)
+    partner = CORNER_PAIRS.get(fap)
+    if partner is not None:
+        # the lip corner is one place for its inner and outer FAP: it moves
+        # by their mean, so the pair together moves it by value x FAPU
+        offsets = offsets + moved(face, partner, value)
     # eyeball thrust (27, 28) has no feature point in Table 7: use the pupil
     point = info.feature_point or {27: "3.5", 28: "3.6"}[fap]
     vertex = face.feature_vertex(point)
     axis = np.asarray(info.axis)
     expected = value * face.fapu.unit(info.unit)
-    assert offsets[vertex] @ axis == pytest.approx(expected, rel=0.02)
+    # a corner pair's shared table is scaled to the mean of its two points,
+    # which the artist's shapes move up to 7 % apart: each is within 4 %
+    tolerance = 0.04 if partner is not None else 0.02
+    assert offsets[vertex] @ axis == pytest.approx(expected, rel=tolerance)
     if info.bidirectional:
-        assert moved(face, fap, -value)[vertex] @ axis == pytest.approx(-expected, rel=0.02)
+        back = moved(face, fap, -value)
+        if partner is not None:
+            back = back + moved(face, partner, -value)
+        assert back[vertex] @ axis == pytest.approx(-expected, rel=tolerance)
 
 
 @pytest.mark.parametrize("fap", [n for n in range(3, 69) if n not in (3, 14, 15, 48, 49, 50)])

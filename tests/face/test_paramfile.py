@@ -198,3 +198,43 @@ def test_the_default_face_parameter_file_round_trips():
         pytest.skip(f"no default face at {path}")
     original = path.read_bytes()
     assert c14n(serialise_parameters(parse_parameters(original))) == c14n(original)
+
+
+def test_a_float16_facedef_mesh_round_trips_compactly():
+    from realizer.face.facedef import FaceDefMesh
+    from realizer.face.model import FaceParameters
+
+    rows = tuple(((0.5, -0.25, 1.0), (0.125, 0.0, -2.0)) for _ in range(200))
+    table = FaceDefMesh(19, (-1000.0, 0.0, 1000.0), tuple(range(200)), rows, encoding="float16")
+    text = serialise_parameters(FaceParameters({}, deformers=(table,)))
+    assert b"<displacement " not in text and b'encoding="float16"' in text
+    assert len(text) < 5000  # 1,200 numbers and 200 indices in base64, not decimal text
+    back = parse_parameters(text).deformers[0]
+    assert back == table
+    assert serialise_parameters(FaceParameters({}, deformers=(back,))) == text
+
+
+def test_a_float16_facedef_mesh_refuses_values_float16_cannot_hold():
+    from realizer.face.facedef import FaceDefMesh
+    from realizer.face.model import FaceParameters
+
+    table = FaceDefMesh(19, (-1000.0, 1000.0), (0,), (((0.1, 0.0, 0.0),),), encoding="float16")
+    with pytest.raises(FaceFileError, match="float16"):
+        serialise_parameters(FaceParameters({}, deformers=(table,)))
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ("<vertices>AAAAAA==</vertices>", "needs <vertices> and <displacements>"),
+        ("<vertices>AAAAAA==</vertices><displacements>AAA=</displacements>", "need"),
+        ("<vertices>!!</vertices><displacements>AAA=</displacements>", "base64"),
+    ],
+)
+def test_bad_float16_facedef_meshes_are_reported(body, message):
+    text = (
+        '<faceeditor-parameters><deformers><facedef-mesh fap="19" intervals="-1000 1000" '
+        f'encoding="float16">{body}</facedef-mesh></deformers></faceeditor-parameters>'
+    )
+    with pytest.raises(FaceFileError, match=message):
+        parse_parameters(text)
