@@ -441,18 +441,30 @@ class ViewClient(_Connected):
         fap: bool = True,
         vertices: str = "none",
         token: str | None = None,
+        coded: bool = False,
+        arkit: bool = False,
     ) -> None:
-        self.connection: ClientConnection = _open(
-            endpoint_url(url, "/view", _view_params(character, fap, vertices, token))
-        )
+        from realizer.face.fapcoding import FapStreamDecoder
+
+        self._decoder = FapStreamDecoder()
+        params = _view_params(character, fap, vertices, token)
+        params.update(coded="true" if coded else None, arkit="true" if arkit else None)
+        self.connection: ClientConnection = _open(endpoint_url(url, "/view", params))
         self.mesh = self.receive(OPEN_TIMEOUT)
         if self.mesh.get("type") != "mesh":
             raise ProtocolError(f"expected the mesh first, got a {self.mesh.get('type')!r} message")
 
     def receive(self, timeout: float | None = None) -> dict[str, Any]:
-        message = _read_view(self._recv(timeout))
+        return self.decode(self._recv(timeout))
+
+    def decode(self, data: str | bytes) -> dict[str, Any]:
+        """A received message (a new mesh also starts a new coded stream)."""
+        message = _read_view(data)
         if message["type"] == "mesh":
+            from realizer.face.fapcoding import FapStreamDecoder
+
             self.mesh = message
+            self._decoder = FapStreamDecoder()  # a new subscription: a new coded stream
         return message
 
     def subscribe(self, **changes: Any) -> None:
@@ -478,6 +490,29 @@ class ViewClient(_Connected):
     def faps(frame: dict[str, Any]) -> dict[int, float]:
         """{FAP number: value} of a frame's set FAPs."""
         return codec.decode_faps(frame["fap"]) if "fap" in frame else {}
+
+    def decoded_faps(self, frame: dict[str, Any]) -> dict[int, float] | None:
+        """{FAP number: value} of a frame, from its ``fap`` payload or its
+        MPEG-4 coded FAPs (``coded=True``); None for a coded frame that cannot
+        be decoded yet (frames arrive in order, so call this for every frame:
+        it decodes from the first intra frame on)."""
+        if "coded" in frame:
+            decoded = self._decoder.decode(frame["coded"], frame["n"], frame.get("codedRef"))
+            if decoded is None:
+                return None
+            values, mask = decoded
+            return {int(i) + 1: float(values[i]) for i in np.flatnonzero(mask)}
+        return self.faps(frame)
+
+    @staticmethod
+    def arkit(frame: dict[str, Any]) -> Any:
+        """The frame's ARKit weights and pose (:class:`realizer.face.arkit.ArkitFrame`),
+        or None when it has none (``arkit=True`` asks for them)."""
+        if "arkit" not in frame:
+            return None
+        from realizer.face.arkit import decode_payload
+
+        return decode_payload(frame["arkit"])
 
 
 def _view_params(

@@ -51,6 +51,19 @@ _INT16_MAX = np.iinfo(np.int16).max
 FloatArray = npt.NDArray[np.floating[Any]]
 
 
+def _fap_tables() -> tuple[bytes, bytes]:
+    from realizer.face.faps import FAP_COUNT, FAP_TABLE
+
+    numbers = range(1, FAP_COUNT + 1)
+    steps = np.array([FAP_TABLE[n].quant_step for n in numbers], dtype="<u2")
+    groups = np.array([FAP_TABLE[n].group for n in numbers], dtype=np.uint8)
+    return steps.tobytes(), groups.tobytes()
+
+
+#: Table 7 steps and Table 2 groups, for decoders of coded FAP frames.
+_FAP_STEPS, _FAP_GROUPS = _fap_tables()
+
+
 def pack(message: Mapping[str, Any]) -> bytes:
     """msgpack bytes of a message (bytes fields as ``bin``)."""
     return cast(bytes, msgpack.packb(message, use_bin_type=True))
@@ -92,6 +105,8 @@ def mesh_message(
         neutral=neutral32.tobytes(),
         colours=colours8.tobytes(),
         step=DELTA_STEP,
+        fapSteps=_FAP_STEPS,
+        fapGroups=_FAP_GROUPS,
     )
 
 
@@ -132,6 +147,8 @@ def frame_message(
     fap: FapPayload | None = None,
     vertices: bytes | None = None,
     delta: DeltaPayload | None = None,
+    coded: tuple[bytes, int | None] | None = None,
+    arkit: bytes | None = None,
 ) -> FrameMessage:
     """A frame message with the payloads ``options`` asks for."""
     message = FrameMessage(
@@ -143,6 +160,12 @@ def frame_message(
         message["vertices"] = vertices
     elif options.vertices == "int16" and delta is not None:
         message["delta"] = delta
+    if options.coded and coded is not None:
+        message["coded"] = coded[0]
+        if coded[1] is not None:
+            message["codedRef"] = coded[1]
+    if options.arkit and arkit is not None:
+        message["arkit"] = arkit
     return message
 
 

@@ -96,6 +96,8 @@ class SubscribeRequest(TypedDict):
     character: NotRequired[str]
     fap: NotRequired[bool]
     vertices: NotRequired[VertexEncoding]
+    coded: NotRequired[bool]
+    arkit: NotRequired[bool]
 
 
 # -- viewer, server to client (msgpack) ---------------------------------------
@@ -119,6 +121,8 @@ class MeshMessage(TypedDict):
     neutral: bytes
     colours: bytes
     step: float
+    fapSteps: bytes  # 68 uint16: Table 7 quantisation steps, for coded FAPs
+    fapGroups: bytes  # 68 uint8: Table 2 group of each FAP
 
 
 class FapPayload(TypedDict):
@@ -151,6 +155,9 @@ class FrameMessage(TypedDict):
     fap: NotRequired[FapPayload]
     vertices: NotRequired[bytes]  # (n, 3) float32 little-endian, metres
     delta: NotRequired[DeltaPayload]
+    coded: NotRequired[bytes]  # one MPEG-4 low-delay coded FAP frame
+    codedRef: NotRequired[int]  # frame number it is predicted from (absent: intra)
+    arkit: NotRequired[bytes]  # 52 uint8 ARKit weights (x / 255)
 
 
 # -- reading client messages ---------------------------------------------------
@@ -162,6 +169,8 @@ class ViewOptions:
 
     fap: bool = True
     vertices: VertexEncoding = "none"
+    coded: bool = False  # MPEG-4 low-delay coded FAPs (realizer.face.fapcoding)
+    arkit: bool = False  # the 52 ARKit blendshape weights
 
     def __post_init__(self) -> None:
         if self.vertices not in ("none", "float32", "int16"):
@@ -228,6 +237,11 @@ def read_subscribe_message(text: str) -> SubscribeRequest:
         if not isinstance(data["fap"], bool):
             raise BadMessage("fap must be true or false")
         request["fap"] = data["fap"]
+    for name in ("coded", "arkit"):
+        if name in data:
+            if not isinstance(data[name], bool):
+                raise BadMessage(f"{name} must be true or false")
+            request[name] = data[name]
     if "vertices" in data:
         if data["vertices"] not in ("none", "float32", "int16"):
             raise BadMessage("vertices must be none, float32 or int16")

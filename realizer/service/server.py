@@ -565,6 +565,8 @@ class RealizerService:
             options = ViewOptions(
                 fap=query.get("fap", "true").lower() not in ("0", "false", "no"),
                 vertices=cast(Any, query.get("vertices", "none")),
+                coded=query.get("coded", "false").lower() in ("1", "true", "yes"),
+                arkit=query.get("arkit", "false").lower() in ("1", "true", "yes"),
             )
             self._admit_viewer(character)
         except PeerError as exc:
@@ -575,6 +577,8 @@ class RealizerService:
         viewer.control.append(self._encoder(character).mesh_bytes)
         if viewer.wants_model:
             viewer.control.append(self._encoder(character).model_bytes)
+        if viewer.options.coded:
+            self._encoder(character).want_intra()
         self.viewers.setdefault(character, set()).add(viewer)
         pump = self._spawn(self._pump_viewer(viewer))
         try:
@@ -605,6 +609,8 @@ class RealizerService:
             options = ViewOptions(
                 fap=request.get("fap", viewer.options.fap),
                 vertices=request.get("vertices", viewer.options.vertices),
+                coded=request.get("coded", viewer.options.coded),
+                arkit=request.get("arkit", viewer.options.arkit),
             )
             if character != viewer.character:
                 self._admit_viewer(character)
@@ -619,6 +625,8 @@ class RealizerService:
         self._control(viewer, self._encoder(character).mesh_bytes)
         if viewer.wants_model:
             viewer.control.append(self._encoder(character).model_bytes)
+        if viewer.options.coded:
+            self._encoder(character).want_intra()
 
     def _control(self, viewer: Viewer, data: bytes) -> None:
         if len(viewer.control) >= self.limits.subscribe_backlog:

@@ -53,12 +53,17 @@ import numpy.typing as npt
 
 from realizer.bml_parser import BmlError, Limits, parse_bml
 from realizer.errors import RealizerError
+from realizer.face.fapcoding import DEFAULT_FAP_QUANT, FapStreamEncoder, is_intra
 from realizer.service import codec
 from realizer.service.errors import LimitExceeded, PeerError
 from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
 from realizer.service.messages import BlockState, DeltaPayload, ViewOptions, warning_feedback_xml
 
 logger = logging.getLogger("realizer.service")
+
+#: Seconds between intra frames of the coded FAP stream: a viewer that
+#: joins decodes from the next one, at most this long after it joined.
+CODED_INTRA_SECONDS = 1.0
 
 # -- what the stage needs from the session and the face (docs/interfaces.md) --
 
@@ -584,6 +589,11 @@ class FrameEncoder:
         self._vertices32: bytes | None = None
         self._delta: DeltaPayload | None = None
         self._model_bytes: bytes | None = None
+        self.fps = fps
+        self.fap_quant = DEFAULT_FAP_QUANT
+        self._coder: FapStreamEncoder | None = None
+        self._coded_number: int | None = None  # the frame the coder last coded
+        self._arkit: Callable[[npt.NDArray[np.float64]], bytes] | None = None
         self.deformations = 0  # how many times the face was deformed (for tests)
 
     @property
@@ -610,6 +620,14 @@ class FrameEncoder:
         fap = codec.fap_payload(values, mask)
         if any(options.vertices != "none" for options in wanted):
             self._update_vertices(np.where(mask, values, 0.0))
+        coded = self._code(number, values, mask) if any(o.coded for o in wanted) else None
+        arkit = None
+        if any(o.arkit for o in wanted):
+            if self._arkit is None:
+                from realizer.face.arkit import arkit_encoder
+
+                self._arkit = arkit_encoder(self.face)
+            arkit = self._arkit(np.where(mask, values, 0.0))
         return {
             options: codec.pack(
                 codec.frame_message(
@@ -620,10 +638,32 @@ class FrameEncoder:
                     fap=fap,
                     vertices=self._vertices32,
                     delta=self._delta,
+                    coded=coded,
+                    arkit=arkit,
                 )
             )
             for options in wanted
         }
+
+    def want_intra(self) -> None:
+        """Make the next coded frame an intra frame (a coded viewer joined)."""
+        self._coded_number = None
+
+    def _code(
+        self, number: int, values: npt.NDArray[np.float64], mask: npt.NDArray[np.bool_]
+    ) -> tuple[bytes, int | None]:
+        """This tick's coded FAP frame and the frame it predicts from (None:
+        intra). A coder that did not code the previous tick (no coded viewer
+        then, or nothing was sent) starts again with an intra frame, and so
+        does one asked to by :meth:`want_intra`."""
+        if self._coder is None or self._coded_number is None or number != self._coded_number + 1:
+            interval = max(1, round(self.fps * CODED_INTRA_SECONDS))
+            self._coder = FapStreamEncoder(self.fap_quant, interval)
+            self._coded_number = None
+        frame = self._coder.encode(values, mask)
+        ref = None if is_intra(frame) else self._coded_number
+        self._coded_number = number
+        return frame, ref
 
     def _update_vertices(self, vector: npt.NDArray[np.float64]) -> None:
         if self._vector is not None and np.array_equal(vector, self._vector):
