@@ -123,6 +123,8 @@ class FaceAssets:
     face: FaceLike
     deform: Deformer
     colours: npt.NDArray[np.uint8] | None = None
+    avatar: bytes | None = None  # a glTF binary the browser viewer drives (--avatar)
+    avatar_missing: tuple[str, ...] = ()  # ARKit targets the avatar lacks
 
 
 @dataclass(slots=True)
@@ -391,6 +393,15 @@ class RealizerService:
             return _json_response(
                 {"realizer": __version__, "protocol": PROTOCOL_VERSION, "fps": self.config.fps}
             )
+        if url.path == "/avatar.json":
+            return _json_response(
+                {
+                    "avatar": self.assets.avatar is not None,
+                    "missing": list(self.assets.avatar_missing),
+                }
+            )
+        if url.path == "/avatar.glb" and self.assets.avatar is not None:
+            return _response(http.HTTPStatus.OK, self.assets.avatar, "model/gltf-binary")
         if url.path == "/favicon.ico":
             return _response(http.HTTPStatus.NO_CONTENT, b"")
         found = self._static.get(url.path)
@@ -727,6 +738,7 @@ class _StaticFiles:
         ".js": "text/javascript; charset=utf-8",
         ".css": "text/css; charset=utf-8",
         ".xml": "application/xml",
+        ".json": "application/json",
     }
 
     def __init__(self) -> None:

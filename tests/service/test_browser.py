@@ -1,6 +1,6 @@
 """The browser viewer, end to end in headless Chromium (Debian's chromium
 driven by Playwright): pick a character, watch the face, send a smile and
-see the canvas change around the mouth."""
+see the canvas change around the mouth, deformed on the GPU path."""
 
 from __future__ import annotations
 
@@ -78,6 +78,7 @@ def test_the_browser_viewer_shows_a_smile_sent_from_the_page() -> None:
             smiling = canvas(page)
             log = page.evaluate("window.realizerViewer.feedback.map(f => f.text)")
             where = {name: on_canvas(name) for name in ("8.3", "8.4", "3.5", "3.6")}
+            on_gpu = page.evaluate("window.realizerViewer.gpu")
         finally:
             browser.close()
 
@@ -88,5 +89,6 @@ def test_the_browser_viewer_shows_a_smile_sent_from_the_page() -> None:
     for corner in mouth:
         assert np.count_nonzero(corner > 30) >= 20
     assert sum(float(c.mean()) for c in mouth) > 5 * sum(float(e.mean()) for e in eyes) + 1
+    assert on_gpu  # the shader deformed the face from FAP frames (the model came once)
     assert any("predictionFeedback" in line for line in log)
     assert any("blockProgress" in line for line in log)

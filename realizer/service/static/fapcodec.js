@@ -138,11 +138,16 @@ export class FapStreamDecoder {
   }
 }
 
-// The ARKit payload of a frame: 52 uint8 weights (0..255 for 0..1) in ARKIT_NAMES order.
+// The ARKit payload of a frame: 52 uint8 weights (0..255 for 0..1) in ARKIT_NAMES order, then
+// 7 int16 LE angles in 1e-4 rad (head pitch, yaw, roll; left eye pitch, yaw; right eye pitch,
+// yaw). Returns {weights: Float32Array(52), pose: Float32Array(7)}.
 export function decodeArkit(bytes) {
-  const out = new Float32Array(bytes.length);
-  for (let i = 0; i < bytes.length; i++) out[i] = bytes[i] / 255;
-  return out;
+  const weights = new Float32Array(52);
+  for (let i = 0; i < 52; i++) weights[i] = bytes[i] / 255;
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const pose = new Float32Array(7);
+  for (let k = 0; k < 7 && 52 + 2 * k + 1 < bytes.length; k++) pose[k] = view.getInt16(52 + 2 * k, true) * 1e-4;
+  return { weights, pose };
 }
 
 // Apple's 52 blendshape names, in the order of the arkit payload (protocols/viewer.md).
