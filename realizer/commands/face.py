@@ -40,15 +40,17 @@ def parse_fap_assignments(text: str) -> npt.NDArray[np.float64]:
 
 def fap_file_frame(path: str, frame: int) -> npt.NDArray[np.float64]:
     """The FAP vector of frame ``frame`` (from 0) of a .fap file
-    (:mod:`realizer.face.fapfile`). Raises ValueError for a missing frame."""
+    (:mod:`realizer.face.fapfile`) or of an MPEG-4 coded FAP file
+    (:mod:`realizer.face.fapcoding`). Raises ValueError for a missing frame."""
     import numpy as np
 
-    from realizer.face.fapfile import read_fap_file
+    from realizer.face.fapcoding import read_any_fap_file
 
-    fap = read_fap_file(path)
-    if not 0 <= frame < fap.frames:
-        raise ValueError(f"{path} has {fap.frames} frames, no frame {frame}")
-    return np.asarray(fap.values[frame], dtype=np.float64)
+    fap = read_any_fap_file(path)  # text .fap, or MPEG-4 coded (realizer faps --coded)
+    frames = fap.values.shape[0]
+    if not 0 <= frame < frames:
+        raise ValueError(f"{path} has {frames} frames, no frame {frame}")
+    return np.where(fap.mask[frame], fap.values[frame], 0.0).astype(np.float64)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -32,6 +32,21 @@ def register(subparsers: Any) -> None:
     parser.add_argument("-o", "--output", type=Path, required=True, help="the .fap file")
     parser.add_argument("--fps", type=float, default=25.0, help="frames per second (25)")
     parser.add_argument("--max-seconds", type=float, default=120.0, help="stop after (120)")
+    parser.add_argument(
+        "--coded",
+        choices=("dct", "lowdelay"),
+        default=None,
+        help="write MPEG-4 coded FAPs instead of text: dct (16-frame DCT segments, for "
+        "recordings) or lowdelay (the viewer stream's arithmetic coding)",
+    )
+    parser.add_argument(
+        "--fap-quant", type=int, default=10, help="FAP_QUANT 1..31 for --coded (10)"
+    )
+    parser.add_argument(
+        "--arkit",
+        action="store_true",
+        help="write the 52 ARKit blendshape weights as CSV (one row per frame) instead",
+    )
     parser.set_defaults(run=run)
 
 
@@ -117,6 +132,27 @@ def run(args: Any) -> int:
     recording = recording_for(args, "faps")
     if recording is None:
         return 2
+    if args.arkit:
+        from realizer.face.arkit import write_arkit_csv
+        from realizer.face.default import load_default_face
+
+        write_arkit_csv(
+            args.output, load_default_face(), recording.times, recording.values, recording.mask
+        )
+        print(f"{args.output}: ARKit weights of {len(recording.times)} frames at {args.fps:g} fps")
+        return 0
+    if args.coded is not None:
+        from realizer.face.fapcoding import encode_dct_file, encode_stream_file
+
+        encode = encode_dct_file if args.coded == "dct" else encode_stream_file
+        data = encode(recording.values, recording.mask, args.fps, args.fap_quant)
+        args.output.write_bytes(data)
+        seconds = len(recording.times) / args.fps
+        print(
+            f"{args.output}: {len(recording.times)} frames at {args.fps:g} fps, "
+            f"{args.coded} coded: {len(data)} bytes, {len(data) * 8 / seconds / 1000:.2f} kbit/s"
+        )
+        return 0
     write_fap_file(args.output, FapFile(args.file.stem, args.fps, recording.values, recording.mask))
     print(f"{args.output}: {len(recording.times)} frames at {args.fps:g} fps")
     return 0

@@ -39,6 +39,12 @@ def register(subparsers: Any) -> None:
         help="token that allows only viewing (default: $REALIZER_VIEW_TOKEN)",
     )
     parser.add_argument(
+        "--avatar",
+        default=None,
+        metavar="MODEL.glb",
+        help="a glTF 2.0 binary avatar with ARKit-named morph targets for the browser viewer",
+    )
+    parser.add_argument(
         "--limit",
         action="append",
         default=[],
@@ -63,6 +69,33 @@ def _limits(pairs: list[str]) -> Any:
             )
         changes[name] = int(value)
     return replace(DEFAULT_LIMITS, **changes)
+
+
+def with_avatar(assets: Any, path: str) -> Any:
+    """``assets`` serving the GLB at ``path`` to the browser viewer; warns once,
+    on stderr, listing the ARKit morph targets it lacks (the rest animate)."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from realizer.face.gltf import avatar_report
+
+    data = Path(path).read_bytes()
+    report = avatar_report(data)
+    if not report.targets:
+        raise ValueError(f"{path}: no ARKit-named morph targets (see docs/viewer-formats.md)")
+    if report.missing:
+        print(
+            f"realizer serve: warning: {path} lacks {len(report.missing)} of the 52 ARKit "
+            f"morph targets: {', '.join(report.missing)}; the others animate",
+            file=sys.stderr,
+        )
+    if not report.bones:
+        print(
+            f"realizer serve: warning: {path} has no head or eye bones; head and eye turns "
+            "are not shown",
+            file=sys.stderr,
+        )
+    return replace(assets, avatar=data, avatar_missing=report.missing)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -91,6 +124,8 @@ def run(args: argparse.Namespace) -> int:
         make_session(args.character)
         stage = Stage(make_session, limits, default_character=args.character)
         assets = face_assets(face)
+        if args.avatar:
+            assets = with_avatar(assets, args.avatar)
     except (RealizerError, ValueError, OSError, ImportError) as exc:
         print(f"realizer serve: {exc}", file=sys.stderr)
         return 2

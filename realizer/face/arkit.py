@@ -238,6 +238,28 @@ def arkit_encoder(face: Any) -> Callable[[FloatArray], bytes]:
     return encode
 
 
+def write_arkit_csv(
+    path: Any, face: Any, times: FloatArray, values: FloatArray, mask: npt.NDArray[np.bool_]
+) -> None:
+    """An ARKit track: a header ``timecode`` then Apple's 52 names (and the
+    pose angles in radians), one row per frame, as ARKit face recordings are
+    laid out."""
+    from pathlib import Path
+
+    fit = ArkitFit(face)
+    header = ["time", *ARKIT_NAMES, *(name for name, _ in POSE_FIELDS)]
+    lines = [",".join(header)]
+    for t, vector, set_ in zip(times, values, mask, strict=True):
+        frame = fit.frame(np.where(set_, vector, 0.0))
+        cells = [
+            f"{t:.4f}",
+            *(f"{w:.4f}" for w in frame.weights),
+            *(f"{a:.5f}" for a in frame.pose),
+        ]
+        lines.append(",".join(cells))
+    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
 def fit_error(fit: ArkitFit, vectors: list[FloatArray]) -> tuple[float, float]:
     """(largest vertex error, metres; relative RMS error) of the fit over ``vectors``."""
     worst, num, den = 0.0, 0.0, 0.0

@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -582,3 +583,70 @@ def encode_stream(
     encoder = FapStreamEncoder(fap_quant, intra_interval)
     for values, mask in frames:
         yield encoder.encode(values, mask)
+
+
+# -- files ----------------------------------------------------------------------
+
+#: A low-delay coded file: magic, float64 fps, then per frame a uint16 LE length and the frame.
+STREAM_MAGIC = b"RFAPLDC1"
+
+
+def encode_stream_file(
+    values: FloatArray,
+    mask: BoolArray,
+    fps: float,
+    fap_quant: int = DEFAULT_FAP_QUANT,
+    intra_interval: int = DEFAULT_INTRA_INTERVAL,
+) -> bytes:
+    """A file of low-delay coded frames (the viewer stream's frames, length-prefixed)."""
+    frames = encode_stream(list(zip(values, mask, strict=True)), fap_quant, intra_interval)
+    parts = [STREAM_MAGIC, np.float64(fps).astype("<f8").tobytes()]
+    for frame in frames:
+        parts.append(np.uint16(len(frame)).astype("<u2").tobytes())
+        parts.append(frame)
+    return b"".join(parts)
+
+
+def decode_stream_file(data: bytes) -> CodedFapFile:
+    """The frames of :func:`encode_stream_file`; raises :class:`FapCodingError`."""
+    if not data.startswith(STREAM_MAGIC) or len(data) < len(STREAM_MAGIC) + 8:
+        raise FapCodingError("not a low-delay coded FAP file")
+    at = len(STREAM_MAGIC)
+    fps = float(np.frombuffer(data[at : at + 8], dtype="<f8")[0])
+    if not (math.isfinite(fps) and fps > 0):
+        raise FapCodingError("bad frame rate in a coded FAP file")
+    at += 8
+    decoder = FapStreamDecoder()
+    values: list[FloatArray] = []
+    masks: list[BoolArray] = []
+    while at < len(data):
+        if at + 2 > len(data) or len(values) >= MAX_DCT_FRAMES:
+            raise FapCodingError("truncated or overlong coded FAP file")
+        length = int(np.frombuffer(data[at : at + 2], dtype="<u2")[0])
+        frame = data[at + 2 : at + 2 + length]
+        if len(frame) != length:
+            raise FapCodingError("truncated coded FAP file")
+        decoded = decoder.decode(frame)
+        if decoded is None:
+            raise FapCodingError("a coded FAP file must start with an intra frame")
+        values.append(decoded[0])
+        masks.append(decoded[1])
+        at += 2 + length
+    if not values:
+        return CodedFapFile(fps, np.zeros((0, FAP_COUNT)), np.zeros((0, FAP_COUNT), dtype=bool))
+    return CodedFapFile(fps, np.stack(values), np.stack(masks))
+
+
+def read_any_fap_file(path: str | Any) -> CodedFapFile:
+    """A FAP file of any kind: DCT-coded, low-delay coded, or the text ``.fap`` format."""
+    from pathlib import Path
+
+    from realizer.face.fapfile import read_fap_file
+
+    data = Path(path).read_bytes()
+    if is_dct_file(data[:8]):
+        return decode_dct_file(data)
+    if data.startswith(STREAM_MAGIC):
+        return decode_stream_file(data)
+    text = read_fap_file(path)
+    return CodedFapFile(text.fps, np.asarray(text.values, dtype=np.float64), text.mask)

@@ -168,3 +168,49 @@ def test_a_refused_connection_reads_as_plain_words() -> None:
             browser.close()
     assert "needs a token" in status
     assert "1006" not in status
+
+
+@pytest.mark.slow
+@pytest.mark.usefixtures("chromium")
+def test_a_gltf_avatar_follows_the_arkit_stream_and_names_its_missing_targets() -> None:
+    from dataclasses import replace
+
+    from playwright.sync_api import sync_playwright
+
+    from realizer.face.arkit import has_targets
+    from realizer.face.gltf import avatar_report, default_face_glb
+
+    if not has_targets():
+        pytest.skip("ARKit targets not extracted")
+    glb = default_face_glb(omit=("tongueOut", "cheekPuff"))  # made here, never committed
+    report = avatar_report(glb)
+    assert report.missing == ("cheekPuff", "tongueOut")
+    assets = replace(real_assets(), avatar=glb, avatar_missing=report.missing)
+    timeout = 30_000 * UNIT
+    with service_in_thread(real_sessions(), assets) as service, sync_playwright() as playwright:
+        browser = launch(playwright)
+        try:
+            page = browser.new_page()
+            page.goto(f"http://127.0.0.1:{service.port}/?character=Eve")
+            page.wait_for_function(
+                "window.realizerViewer.avatar && window.realizerViewer.avatar.frames > 3",
+                timeout=timeout,
+            )
+            avatar = page.evaluate(
+                "({missing: window.realizerViewer.avatar.missing,"
+                " bones: window.realizerViewer.avatar.bones})"
+            )
+            page.fill("#bml", LONG_SMILE)
+            page.click("#send")
+            page.wait_for_function(
+                "window.realizerViewer.avatar.weights[24] > 0.05", timeout=timeout
+            )  # mouthSmileRight
+            warnings = page.evaluate(
+                "window.realizerViewer.feedback.filter(f => f.kind === 'warning').map(f => f.text)"
+            )
+        finally:
+            browser.close()
+    assert avatar["missing"] == ["cheekPuff", "tongueOut"]
+    assert avatar["bones"]["head"] == "head" and avatar["bones"]["leftEye"] == "leftEye"
+    listed = [w for w in warnings if "morph targets missing" in w]
+    assert len(listed) == 1 and "cheekPuff" in listed[0] and "tongueOut" in listed[0]

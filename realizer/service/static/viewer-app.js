@@ -258,7 +258,9 @@ function watchCharacter(id) {
   state.characters.set(id, c);
   const params = { character: id, model: "true", vertices: "none" };
   if (state.stream === "coded") { params.coded = "true"; params.fap = "false"; }
-  if (state.stream === "arkit") { params.arkit = "true"; }
+  if (state.stream === "arkit" || (state.avatarOffered && state.characters.size === 1)) {
+    params.arkit = "true";
+  }
   const ws = new WebSocket(`${wsBase()}/view?${query(params)}`);
   ws.binaryType = "arraybuffer";
   c.ws = ws;
@@ -498,9 +500,14 @@ if (params.get("token")) $("token").value = params.get("token");
 if (params.get("stream")) { state.stream = params.get("stream"); $("stream").value = state.stream; }
 const wanted = (params.get("character") || "default").split(",").filter(Boolean);
 $("character").value = wanted[0];
+// an avatar (realizer serve --avatar) follows the first character's ARKit weights
+try {
+  state.avatarOffered = params.get("avatar") !== "false" && (await (await fetch("/avatar.json")).json()).avatar;
+} catch (error) { state.avatarOffered = false; }
 for (const id of wanted) watchCharacter(id);
-if (params.get("avatar") !== "false") {
-  import("/static/avatar.js").then((m) => m.loadAvatar(scene, state, THREE)).catch(() => {});
+if (state.avatarOffered) {
+  import("/static/avatar.js").then((m) => m.loadAvatar(scene, state, THREE))
+    .catch((error) => log("warning", `the avatar could not be loaded: ${error.message}`));
 }
 loadExamples();
 refreshCharacters();
