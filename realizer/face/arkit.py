@@ -6,8 +6,9 @@ mesh (MakeHuman hm08, CC0) comes with CC0 ARKit "Face Units" morph targets
 (``data/arkit/faceunits.npz``, made by ``scripts/extract_arkit_targets.py``),
 so a frame can be projected exactly onto them:
 
-* the face is deformed from the frame's FAPs before the head motion
-  (:meth:`realizer.face.deform.FaceRig.deform_posed`), and the displacement
+* the face is deformed from the frame's FAPs without the head and eye
+  turns (:meth:`realizer.face.deform.FaceRig.deform_posed` with FAPs 23-26
+  and 48-50 at 0), and the displacement
   of every skin vertex the targets reach is fitted by the 52 targets'
   offsets with weights bounded to 0..1 (bounded linear least squares,
   solved on the normal equations by projected coordinate descent, warm
@@ -157,8 +158,11 @@ class ArkitFit:
         self._last = np.zeros(self.fitted.size)
 
     def displacement(self, fap_vector: FloatArray) -> FloatArray:
-        """(k, 3) metres: the face's displacement at the targets' vertices, before the head pose."""
-        posed, _ = self.rig.deform_posed(fap_vector)
+        """(k, 3) metres: the face's displacement at the targets' vertices, without
+        the head and eye turns (they travel as the pose's angles)."""
+        vector = np.array(fap_vector, dtype=np.float64)
+        vector[[i for _, i in POSE_FIELDS]] = 0.0  # head and eye turns travel as angles
+        posed, _ = self.rig.deform_posed(vector)
         out: FloatArray = np.asarray(posed, dtype=np.float64)[self.vertices] - self.neutral
         return out
 

@@ -143,11 +143,12 @@ def default_face_glb(omit: tuple[str, ...] = ()) -> bytes:
     ``rightEye`` (pivots at the eyeball centres)."""
     from realizer.face.arkit import ARKIT_NAMES, arkit_targets
     from realizer.face.default import load_default_face
-    from realizer.service.assets import srgb_colours
+    from realizer.face.render import vertex_colours
 
     face = load_default_face()
     vertices = np.asarray(face.vertices, dtype=np.float64)
-    colours = srgb_colours(face).astype(np.float32) / 255.0
+    # glTF's COLOR_0 is linear, as the renderer's part colours are
+    colours = np.clip(np.asarray(vertex_colours(face), dtype=np.float32), 0.0, 1.0)
     moved, offsets = arkit_targets(face)
     buffer = _Buffer()
     meshes: list[dict[str, Any]] = []
