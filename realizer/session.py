@@ -183,11 +183,18 @@ class Session:
 
     # -- input -------------------------------------------------------------
 
-    def receive_bml(self, text: str | bytes | ParseResult, now: float) -> TimedPlan | None:
+    def receive_bml(
+        self, text: str | bytes | ParseResult, now: float, *, strict: bool = False
+    ) -> TimedPlan | None:
         """Parse, plan and schedule a block arriving at ``now``.
 
         ``text`` may also be a :class:`ParseResult` the caller already has
         (the service parses once to route a block to its character).
+
+        ``strict`` (planners' CI): every warning of the parser or the
+        scheduler, an unknown reference included, is an error: the warnings
+        are reported, then one more saying the block is refused in strict
+        mode, and nothing of it runs (a REPLACE block interrupts nothing).
 
         Feedback (warnings, then the prediction) is queued; returns the plan,
         or None when the block was refused (a warningFeedback says why).
@@ -221,7 +228,7 @@ class Session:
                 )
             )
             return None
-        if block.composition == "REPLACE":
+        if block.composition == "REPLACE" and not strict:
             for block_id in self.active_blocks:
                 self.interrupt(block_id, now)
         start = now
@@ -291,11 +298,24 @@ class Session:
         for note in plan.warnings:
             self._emit(warning(block.id, note.id, str(note.type), note.message, now,
                                self.character_id))  # fmt: skip
+        notes = 0
         for scheduled in plan.behaviours:
             for text in self.registry.notes(scheduled.behaviour):
+                notes += 1
                 self._emit(warning(block.id, f"{block.id}:{scheduled.id}",
                                    str(WarningType.CANNOT_CREATE_BEHAVIOR),
                                    f"{scheduled.id}: {text}", now, self.character_id))  # fmt: skip
+        if strict and (plan.warnings or notes):
+            kind = plan.warnings[0].type if plan.warnings else WarningType.CANNOT_CREATE_BEHAVIOR
+            self._emit(warning(block.id, block.id, str(kind),
+                               f"strict mode: {len(plan.warnings) + notes} warning(s) above are "
+                               f"errors; block {block.id!r} is refused", now,
+                               self.character_id))  # fmt: skip
+            self._failed(block, start, lifecycle)
+            return None
+        if block.composition == "REPLACE" and strict:
+            for block_id in self.active_blocks:
+                self.interrupt(block_id, now)
         self._emit(predicted)
         record = _Record(plan, lifecycle, deque(events), animations, audio)
         self._blocks[block.id] = record

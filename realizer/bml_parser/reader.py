@@ -442,6 +442,17 @@ class _Reader:
             if isinstance(behaviour, Behaviour):
                 behaviours.append(behaviour)
             return behaviour
+        if namespace == "" and self.vocab.spec(BML_NS, local) is not None:
+            # The usual mistake: BML 1.0 written without its namespace.
+            self.warn(
+                WarningType.BEHAVIOR_TYPE_NOT_SUPPORTED,
+                f"<{local}> is a BML 1.0 behaviour, but this document declares no namespace, "
+                f"so it is read as the BML draft of 2008, which has no <{local}>; it is ignored. "
+                f'To write BML 1.0, add xmlns="{BML_NS}" to <bml>',
+                el,
+                el.get("id", ""),
+            )
+            return self.other(el, nsmap, 1)
         if dialect in ("bml", "draft"):
             self.warn(
                 WarningType.BEHAVIOR_TYPE_NOT_SUPPORTED,

@@ -4,7 +4,8 @@ Prints each block's behaviours and sync references; ``--json`` prints the
 tree as JSON; ``--roundtrip`` checks that serialising the parsed tree gives
 back the document under C14N 2.0 (``OK path`` / ``DIFF path`` with the first
 difference; exit 1 if any differs). Invalid input: ``path:line:col: error:
-message`` on stderr and exit 2.
+message`` on stderr and exit 2. ``--strict`` (for planners' CI) makes every
+warning an error: ``path:line:col: error: TYPE: message`` and exit 2.
 """
 
 from __future__ import annotations
@@ -25,12 +26,47 @@ def register(subparsers: Any) -> None:
         description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     parser.add_argument("files", nargs="+", type=Path, metavar="FILE")
+    parser.add_argument(
+        "--strict", action="store_true", help="every warning is an error (exit status 2)"
+    )
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--json", action="store_true", help="print the tree as JSON")
     mode.add_argument(
         "--roundtrip", action="store_true", help="check the C14N round trip of each file"
     )
     parser.set_defaults(run=run)
+
+
+def unknown_references(block: Any) -> list[str]:
+    """References to a behaviour or sync point the block does not have.
+
+    What the parser alone can tell: references into other blocks need a
+    session and are left to ``realizer schedule --strict``.
+    """
+    problems = []
+    behaviours = {b.id: b for b in block.behaviours}
+    for holder, ref in block.all_sync_refs():
+        if ref.is_time or (ref.block is not None and ref.block != block.id):
+            continue
+        if ref.behaviour == "bml":
+            if ref.sync != "start":
+                problems.append(
+                    f"{holder.id or 'a constraint'}: {ref.raw.strip()!r}: bml has only a start"
+                )
+            continue
+        target = behaviours.get(ref.behaviour or "")
+        name = "stroke" if ref.sync == "stroke" and ref.iteration == 1 else ref.sync_name
+        if target is None:
+            problems.append(
+                f"{holder.id or 'a constraint'}: {ref.raw.strip()!r}: no behaviour "
+                f"{ref.behaviour!r} in block {block.id!r}"
+            )
+        elif name not in target.syncs:
+            problems.append(
+                f"{holder.id or 'a constraint'}: {ref.raw.strip()!r}: {ref.behaviour!r} has no "
+                f"sync point {name!r}"
+            )
+    return problems
 
 
 def _first_difference(expected: str, actual: str) -> str:
@@ -154,6 +190,16 @@ def run(args: argparse.Namespace) -> int:
             print(str(exc), file=sys.stderr)
             status = 2
             continue
+        if args.strict:
+            problems = [
+                f"{path}:{w.line}:{w.column}: error: {w.type}: {w.message}" for w in result.warnings
+            ] + [
+                f"{path}:0:0: error: NO_SUCH_TARGET: {p}" for p in unknown_references(result.block)
+            ]
+            if problems:
+                print("\n".join(problems), file=sys.stderr)
+                status = 2
+                continue
         if args.roundtrip:
             expected = canonical(data)
             actual = canonical(serialise(result.block))

@@ -16,6 +16,11 @@ started. Warnings go to stderr as ``path: warning TYPE id: message``.
 ``IMPOSSIBLE_TO_SCHEDULE`` warning is). Exit status: 2 when a file cannot be
 read or parsed (``path:line:col: error: message`` on stderr), else 1 when a
 block failed to schedule or was refused, else 0.
+
+``--strict`` (for planners' CI): every warning, an unknown reference
+included, is an error: it is printed as ``path: error TYPE id: message``,
+the block is refused (nothing of it is scheduled, so later files do not see
+it) and the exit status is 2.
 """
 
 from __future__ import annotations
@@ -67,6 +72,9 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("files", nargs="+", type=Path, metavar="FILE")
     parser.add_argument("--json", action="store_true", help="print the schedule as JSON")
+    parser.add_argument(
+        "--strict", action="store_true", help="every warning is an error (exit status 2)"
+    )
     parser.set_defaults(run=run)
 
 
@@ -86,7 +94,9 @@ def warnings_of(feedback: list[Feedback]) -> tuple[WarningNote, ...]:
     return tuple(notes)
 
 
-def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
+def schedule_files(
+    paths: list[Path], *, strict: bool = False
+) -> tuple[list[ScheduledFile], list[str]]:
     """Schedule the files in order in one session at time 0.
 
     Returns the outcome of every file that parsed, and the error lines
@@ -112,7 +122,7 @@ def schedule_files(paths: list[Path]) -> tuple[list[ScheduledFile], list[str]]:
         except BmlError as exc:
             errors.append(str(exc))
             continue
-        plan = session.receive_bml(parsed, now=0.0)
+        plan = session.receive_bml(parsed, now=0.0, strict=strict)
         outcomes.append(ScheduledFile(path, plan, warnings_of(session.take_feedback())))
 
     outcomes = [
@@ -205,12 +215,13 @@ def schedule_json(outcomes: list[ScheduledFile]) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    outcomes, errors = schedule_files(list(args.files))
+    outcomes, errors = schedule_files(list(args.files), strict=args.strict)
     for error in errors:
         print(error, file=sys.stderr)
+    level = "error" if args.strict else "warning"
     for outcome in outcomes:
         for note in outcome.warnings:
-            print(f"{outcome.path}: warning {note.type} {note.id}: {note.message}", file=sys.stderr)
+            print(f"{outcome.path}: {level} {note.type} {note.id}: {note.message}", file=sys.stderr)
     if args.json:
         json.dump(schedule_json(outcomes), sys.stdout, indent=2)
         print()
@@ -224,6 +235,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"{outcome.path}: block {plan.id}  {plan.start:.3f} s to {plan.end:.3f} s{flag}")
             for text in format_table(plan):
                 print(text)
-    if errors:
+    if errors or (args.strict and any(outcome.warnings for outcome in outcomes)):
         return 2
     return 1 if any(outcome.plan is None for outcome in outcomes) else 0

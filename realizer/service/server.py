@@ -172,6 +172,8 @@ class Submitter:
     format: FeedbackFormat
     default_character: str
     characters: set[str] = field(default_factory=set)
+    #: ``/bml?strict=true``: every warning refuses the block
+    strict: bool = False
     outbox: deque[str] = field(default_factory=deque)
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     closing: bool = False
@@ -471,6 +473,7 @@ class RealizerService:
             )
             return
         submitter = Submitter(connection, cast(FeedbackFormat, fmt), character)
+        submitter.strict = query.get("strict", "false").lower() in ("1", "true", "yes")
         if "character" in query:
             submitter.characters.add(character)
         self.submitters.add(submitter)
@@ -528,6 +531,7 @@ class RealizerService:
                 now,
                 character=request.get("character"),
                 fallback=submitter.default_character,
+                strict=submitter.strict,
             )
             if result.character in self.stage.characters:
                 submitter.characters.add(result.character)

@@ -87,7 +87,7 @@ class FrameLike(Protocol):
 
 
 class SessionLike(Protocol):
-    def receive_bml(self, text: Any, now: float) -> Any: ...
+    def receive_bml(self, text: Any, now: float, *, strict: bool = False) -> Any: ...
     def interrupt(self, block_id: str, now: float) -> Any: ...
     def tick(self, now: float) -> Any: ...
     def take_feedback(self) -> list[Any]: ...
@@ -255,10 +255,18 @@ class Stage:
     # -- submitting -------------------------------------------------------------
 
     def submit_bml(
-        self, text: str, now: float, *, character: str | None = None, fallback: str | None = None
+        self,
+        text: str,
+        now: float,
+        *,
+        character: str | None = None,
+        fallback: str | None = None,
+        strict: bool = False,
     ) -> SubmitResult:
         """Hand a BML document to its character's session at ``now`` seconds.
 
+        ``strict``: every warning refuses the block (the connection's
+        ``/bml?strict=true``; :meth:`realizer.session.Session.receive_bml`).
         Never raises for bad input: refusals come back as a ``warningFeedback``
         and a ``rejected`` :class:`BlockEvent`.
         """
@@ -287,7 +295,7 @@ class Stage:
             )
         messages: list[Outgoing] = []
         try:
-            plan = found.session.receive_bml(parsed, now)  # parsed once, here
+            plan = found.session.receive_bml(parsed, now, strict=strict)  # parsed once, here
         except Exception as exc:
             # The contract says sessions queue warnings and return None; a
             # session that raises is answered the same way, and the block is

@@ -333,3 +333,10 @@ def test_there_are_at_least_a_dozen_examples_each_saying_what_it_shows() -> None
     assert len(paths) >= 12
     for path in paths:
         assert parse_bml(path.read_bytes()).block.prolog, f"{path.name} has no comment"
+
+
+def test_bml_1_0_without_its_namespace_is_explained_with_the_fix() -> None:
+    result = parse_bml('<bml id="x"><faceLexeme id="a" lexeme="RAISE_BROWS"/></bml>')
+    [warning] = result.warnings
+    assert "declares no namespace" in warning.message and "draft of 2008" in warning.message
+    assert 'add xmlns="http://www.bml-initiative.org/bml/bml-1.0" to <bml>' in warning.message

@@ -43,7 +43,7 @@ class FakeSession:
         self.started: set[str] = set()
         self.feedback: list[FakeFeedback] = []
 
-    def receive_bml(self, text: str | ParseResult, now: float) -> FakePlan:
+    def receive_bml(self, text: str | ParseResult, now: float, *, strict: bool = False) -> FakePlan:
         self.calls.append(("receive_bml", now))
         block = (text if isinstance(text, ParseResult) else parse_bml(text)).block
         self.running[block.id] = (now, now + self.duration)

@@ -90,7 +90,7 @@ def test_an_append_block_ending_at_1e308_is_refused() -> None:
 
 def test_a_session_failing_after_its_prediction_gives_a_rejection_and_no_prediction() -> None:
     class FailsAfterPredicting(FakeSession):
-        def receive_bml(self, text: Any, now: float) -> FakePlan:
+        def receive_bml(self, text: Any, now: float, *, strict: bool = False) -> FakePlan:
             super().receive_bml(text, now)  # queues the prediction
             raise OverflowError("cannot convert float infinity to integer")
 
@@ -156,7 +156,7 @@ def test_a_duplicate_arriving_as_the_old_block_starts_is_rejected() -> None:
 
 def test_warnings_of_one_block_are_bounded_whatever_the_session_makes() -> None:
     class Chatty(FakeSession):
-        def receive_bml(self, text: Any, now: float) -> FakePlan:
+        def receive_bml(self, text: Any, now: float, *, strict: bool = False) -> FakePlan:
             plan = super().receive_bml(text, now)
             prediction = self.feedback.pop()
             for n in range(4_200):
