@@ -25,6 +25,12 @@ APT_PACKAGES=(
 if [ "${REALIZER_SKIP_APT:-0}" != "1" ] && command -v apt-get >/dev/null 2>&1; then
     missing=()
     for pkg in "${APT_PACKAGES[@]}"; do
+        # Node.js may come from elsewhere (NodeSource bundles npm, which then
+        # conflicts with Debian's npm): a working command is enough.
+        case "$pkg" in
+            nodejs) command -v node >/dev/null 2>&1 && continue ;;
+            npm) command -v npm >/dev/null 2>&1 && continue ;;
+        esac
         dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
     done
     if [ ${#missing[@]} -gt 0 ]; then
