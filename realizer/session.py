@@ -149,9 +149,13 @@ class Session:
         *,
         registry: EngineRegistry | None = None,
         limits: SessionLimits | None = None,
+        idle: Any = None,
     ) -> None:
         self.character_id = character_id
         self.face = face
+        # Idle motion (realizer.face.idle.IdleMotion, or None: off): fills the
+        # FAPs no animation sets, so explicit behaviours win per FAP.
+        self.idle = idle
         self.registry = registry or EngineRegistry.standard()
         self.limits = limits or SessionLimits()
         self.now = float("-inf")
@@ -401,10 +405,19 @@ class Session:
         frame_type, mix = _face_mixer()
         animations = [a for r in self._live for a in r.animations]
         if not animations:
+            if self.idle is not None:
+                values, mask = self.idle.frame(now)
+                return frame_type(values, mask, time=now)
             return frame_type.neutral(time=now)
         if self._fap_limits is _UNSET:
             self._fap_limits = self.registry.fap_limits
         values, mask = mix(animations, now, self._fap_limits)
+        if self.idle is not None:
+            idle_values, idle_mask = self.idle.frame(now)
+            free = idle_mask & ~mask
+            values = values.copy()
+            values[free] = idle_values[free]
+            mask = mask | idle_mask
         return frame_type(values, mask, time=now)
 
     def audio(self, start: float, end: float, sample_rate: int = 22050) -> Any:

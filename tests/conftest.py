@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+
+# Idle motion (blinks, saccades, breathing) is on by default in `realizer
+# serve` and `render`; tests see still faces unless they ask for it, and the
+# commands they start inherit this.
+os.environ.setdefault("REALIZER_IDLE", "0")
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "bml"

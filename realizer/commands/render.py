@@ -11,6 +11,7 @@ rendering or writing failed.
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -42,6 +43,14 @@ def register(subparsers: Any) -> None:
         "--max-duration", type=float, default=120.0, help="stop after this many seconds (120)"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--idle",
+        action=argparse.BooleanOptionalAction,
+        default=os.environ.get("REALIZER_IDLE", "1") != "0",
+        help="keep faces alive: blinks, saccades, breathing, head motion "
+        "(default on; REALIZER_IDLE=0 turns it off)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the idle motion (0)")
     parser.set_defaults(run=run)
 
 
@@ -111,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
         print("realizer render: ffmpeg is not installed (scripts/setup.sh)", file=sys.stderr)
         return 2
 
-    stage = Stage(session_factory(face))
+    stage = Stage(session_factory(face, idle=args.idle, seed=args.seed))
     offline = run_offline(
         stage,
         text,

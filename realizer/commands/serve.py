@@ -51,6 +51,14 @@ def register(subparsers: Any) -> None:
         metavar="NAME=VALUE",
         help="override a named limit, e.g. --limit viewers=200 (see protocols/README.md)",
     )
+    parser.add_argument(
+        "--idle",
+        action=argparse.BooleanOptionalAction,
+        default=os.environ.get("REALIZER_IDLE", "1") != "0",
+        help="keep faces alive: blinks, saccades, breathing, head motion "
+        "(default on; REALIZER_IDLE=0 turns it off)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the idle motion (0)")
     parser.set_defaults(run=run)
 
 
@@ -118,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
             limits=limits,
         )
         face = load_face(args.face)
-        make_session = session_factory(face)
+        make_session = session_factory(face, idle=args.idle, seed=args.seed)
         # The first session loads the engines' data (tens of ms): do it now,
         # not on the clock's time when the first character appears.
         make_session(args.character)

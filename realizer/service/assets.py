@@ -45,12 +45,24 @@ def face_assets(face: Any) -> FaceAssets:
     return FaceAssets(face=face, deform=deform, colours=srgb_colours(face))
 
 
-def session_factory(face: Any) -> Any:
-    """``character_id -> Session(character_id, face)``."""
+def session_factory(face: Any, *, idle: bool = False, seed: int = 0) -> Any:
+    """``character_id -> Session(character_id, face)``.
+
+    With ``idle``, each character's face is kept alive between behaviours
+    (realizer.face.idle: blinks, saccades, breathing, head motion), seeded by
+    ``seed`` and the character's id, so a run is reproducible."""
     from realizer.session import Session
 
     def make(character_id: str) -> SessionLike:
-        session: SessionLike = Session(character_id, face)
+        motion = None
+        if idle:
+            import zlib
+
+            from realizer.face.idle import IdleMotion, IdleSettings
+
+            own = zlib.crc32(character_id.encode("utf-8"))
+            motion = IdleMotion(IdleSettings(seed=seed * 2**32 + own))
+        session: SessionLike = Session(character_id, face, idle=motion)
         return session
 
     return make
