@@ -132,7 +132,7 @@ def _behaviour_element(block_id: str, behaviour: Behaviour, times: Mapping[str, 
     element = prediction_element(behaviour.type)
     if element is None:  # no BML 1.0 element for it: nothing valid to predict
         return ""
-    namespace, name, attributes = element
+    namespace, name, attributes, sync_names = element
     prefix = _prefix(namespace)
     tag = f"{prefix}:{name}" if prefix else name
     decl = f" xmlns:{prefix}={quoteattr(namespace)}" if prefix else ""
@@ -142,9 +142,10 @@ def _behaviour_element(block_id: str, behaviour: Behaviour, times: Mapping[str, 
             parts.append(f" {key}={quoteattr(value)}")
     markers = set(behaviour.speech.sync_ids) if behaviour.speech is not None else set()
     for sync in behaviour.syncs:
-        # stroke:2.. of a repeated head have no attribute in BML 1.0; their
-        # times come with the syncPointProgress.
-        if sync in times and sync not in markers and ":" not in sync:
+        # stroke:2.. of a repeated head, and the draft's extra sync points
+        # (a draft gaze's stroke), have no attribute on the BML 1.0 element;
+        # their times come with the syncPointProgress.
+        if sync in times and sync not in markers and sync in sync_names:
             parts.append(f' {sync}="{_t(times[sync])}"')
     if behaviour.speech is None:
         parts.append("/>")

@@ -554,7 +554,8 @@ class _Reader:
                 problem = f"<{local}> {behaviour_id!r} lacks the attribute {missing[0]!r}"
         behaviour_type = spec.type
         if spec.dialect == "draft":
-            behaviour_type, params = self.translate(spec, params)
+            behaviour_type, params, draft_problem = self.translate(spec, params, behaviour_id)
+            problem = problem or draft_problem
         if not problem and behaviour_type in _CHECKED_TYPES:
             problem = self.check_params(behaviour_type, params, behaviour_id, self.limits)
 
@@ -605,23 +606,83 @@ class _Reader:
 
     @staticmethod
     def translate(
-        spec: BehaviourSpec, params: list[tuple[str, str]]
-    ) -> tuple[str, list[tuple[str, str]]]:
-        """Map a draft behaviour onto the BML 1.0 type and attribute names."""
-        if spec.dialect != "draft":
-            return spec.type, params
+        spec: BehaviourSpec, params: list[tuple[str, str]], behaviour_id: str = ""
+    ) -> tuple[str, list[tuple[str, str]], str]:
+        """Map a draft behaviour onto the BML 1.0 type and attribute names.
+
+        Returns (type, params under BML 1.0 names, problem or ""). The
+        mapping tables are data (``[draft]`` of data/vocabulary.toml);
+        docs/parser.md lists them. The raw attributes stay untouched on the
+        node, so the document serialises back as the draft it was.
+        """
+        draft = vocabulary().draft
         values = dict(params)
         if spec.element == "face":
             if values.get("type", "").upper() == "FACS":
                 kept = [(k, v) for k, v in params if k in ("au", "side", "amount")]
-                return "faceFacs", kept
+                return "faceFacs", kept, ""
             kept = [(k, v) for k, v in params if k != "type"]
-            return "faceLexeme", [("lexeme", values["type"]), *kept]
-        if spec.element in ("head", "gesture") and "type" in values and "lexeme" not in values:
-            renamed = [("lexeme", v) if k == "type" else (k, v) for k, v in params]
-            renamed = [("repetition", v) if k == "repeats" else (k, v) for k, v in renamed]
-            return spec.type, renamed
-        return spec.type, params
+            return "faceLexeme", [("lexeme", values["type"]), *kept], ""
+        renamed = [(draft.attributes.get(k, k), v) for k, v in params]
+        if spec.element == "head":
+            action = values.get("action", "").upper()
+            lexeme = values.get("lexeme") or values.get("type")
+            if action == "ROTATION" and "rotation" in values:
+                lexeme = values["rotation"].upper()
+            elif action and action != "ROTATION":
+                return (
+                    spec.type,
+                    renamed,
+                    (
+                        f"<head> {behaviour_id!r}: action={values['action']!r} is not supported "
+                        "(the draft's ROTATION with rotation NOD, SHAKE or TILT is)"
+                    ),
+                )
+            if lexeme is None:
+                return (
+                    spec.type,
+                    renamed,
+                    (f'<head> {behaviour_id!r} needs type, or action="ROTATION" with rotation'),
+                )
+            kept = [(k, v) for k, v in renamed if k not in ("lexeme", "type", "action", "rotation")]
+            return "head", [("lexeme", lexeme), *kept], ""
+        if spec.element == "gesture":
+            kind = (values.get("type") or "").upper()
+            mode = draft.hands.get((values.get("hand") or "").upper())
+            kept = [(k, v) for k, v in renamed if k not in ("type", "hand", "lexeme", "target")]
+            if mode is not None:
+                kept.append(("mode", mode))
+            if kind == "POINT":
+                if "target" not in values:
+                    return (
+                        "pointing",
+                        kept,
+                        f'<gesture type="POINT"> {behaviour_id!r} needs a target',
+                    )
+                return "pointing", [("target", values["target"]), *kept], ""
+            lexeme = values.get("lexeme") or values.get("type")
+            if lexeme is None:
+                return spec.type, kept, f"<gesture> {behaviour_id!r} needs a type"
+            return "gesture", [("lexeme", lexeme), *kept], ""
+        if spec.element == "gaze":
+            out = []
+            for key, value in renamed:
+                if key == "modality":
+                    influence = draft.modalities.get(value.upper())
+                    if influence is None:
+                        return (
+                            spec.type,
+                            renamed,
+                            (
+                                f"<gaze> {behaviour_id!r}: modality={value!r} is not one of "
+                                f"{', '.join(draft.modalities)}"
+                            ),
+                        )
+                    out.append(("influence", influence))
+                elif key != "type":
+                    out.append((key, value))
+            return "gaze", out, ""
+        return spec.type, renamed, ""
 
     @staticmethod
     def check_params(

@@ -61,11 +61,21 @@ class BehaviourSpec:
 
 
 @dataclass(frozen=True, slots=True)
+class DraftMapping:
+    """How the draft's attributes become BML 1.0's (``[draft]`` of the data file)."""
+
+    attributes: dict[str, str]  # draft attribute -> BML 1.0 attribute
+    modalities: dict[str, str]  # gaze modality -> BML 1.0 influence
+    hands: dict[str, str]  # gesture hand -> BML 1.0 mode
+
+
+@dataclass(frozen=True, slots=True)
 class Vocabulary:
     specs: dict[tuple[str, str], BehaviourSpec]  # (namespace, element) -> spec
     namespaces: dict[str, str]  # dialect -> namespace
     draft_sync_names: dict[str, str]
     all_sync_names: frozenset[str]  # every sync attribute name of any dialect
+    draft: DraftMapping
 
     def spec(self, namespace: str, element: str) -> BehaviourSpec | None:
         return self.specs.get((namespace, element))
@@ -104,16 +114,22 @@ def vocabulary() -> Vocabulary:
             if dialect == "draft":
                 specs[("", element)] = spec
     all_syncs = frozenset(CANONICAL_SYNCS) | frozenset(draft_names) | {"attackPeak"}
-    return Vocabulary(specs, namespaces, draft_names, all_syncs)
+    mapping = raw["draft"]
+    draft = DraftMapping(mapping["attributes"], mapping["modality"], mapping["hand"])
+    return Vocabulary(specs, namespaces, draft_names, all_syncs, draft)
 
 
 @cache
-def prediction_element(behaviour_type: str) -> tuple[str, str, frozenset[str]] | None:
-    """(namespace, element name, attributes) of the element that writes a
-    behaviour of ``behaviour_type`` in feedback: its BML 1.0 (or core
-    extension, or this realizer's extension) element, whatever dialect the
-    block was written in. None for a type with no such element."""
+def prediction_element(
+    behaviour_type: str,
+) -> tuple[str, str, frozenset[str], tuple[str, ...]] | None:
+    """(namespace, element name, attributes, sync attribute names) of the
+    element that writes a behaviour of ``behaviour_type`` in feedback: its
+    BML 1.0 (or core extension, or this realizer's extension) element,
+    whatever dialect the block was written in. None for a type with no such
+    element."""
     for spec in vocabulary().specs.values():
         if spec.type == behaviour_type and spec.dialect != "draft":
-            return vocabulary().namespaces[spec.dialect], spec.element, spec.attributes
+            namespace = vocabulary().namespaces[spec.dialect]
+            return namespace, spec.element, spec.attributes, spec.syncs
     return None

@@ -260,6 +260,10 @@ class FaceEngine:
             table = _phase_table("face")
         elif kind == "gaze":
             table = _phase_table("gaze")
+            if len(syncs) != len(table) + 1:
+                # The 2008 draft's seven-point gaze: the model is the engine's
+                # own, and the registry re-expresses it over the draft's points.
+                syncs = ("start", "ready", "relax", "end")
         elif kind == "head":
             base = _phase_table("head")
             extra = max(0, len(_strokes(syncs)) - 1)
