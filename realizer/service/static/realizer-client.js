@@ -235,7 +235,9 @@ export function parseFeedback(xml) {
   if (element === "blockProgress") {
     const [blockId, sync] = String(attributes.id ?? "").split(":");
     Object.assign(out, { blockId, sync, globalTime: number("globalTime") });
-    if (attributes.status !== undefined) out.status = attributes.status;
+    // BMLA's block status (bmla:status: IN_EXEC, DONE, INTERRUPTED, REVOKED)
+    const status = attributes["bmla:status"] ?? attributes.status;
+    if (status !== undefined) out.status = status;
   } else if (element === "syncPointProgress") {
     const [blockId, behaviourId, sync] = String(attributes.id ?? "").split(":");
     Object.assign(out, {
