@@ -21,6 +21,7 @@ import sys
 from collections.abc import Sequence
 
 from realizer import __version__
+from realizer.errors import RealizerError
 
 #: Modules of :mod:`realizer.commands`, in the order ``--help`` lists them.
 COMMANDS: tuple[str, ...] = (
@@ -119,6 +120,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if missing is None:
             raise
         print(f"realizer: error: {missing}", file=sys.stderr)
+        return 2
+    except (OSError, RealizerError) as exc:
+        # input the command did not catch itself: one line, never a traceback
+        from realizer.commands import error_line
+
+        print(error_line(args.command.replace("_", "-"), exc), file=sys.stderr)
         return 2
     return status
 

@@ -22,3 +22,26 @@ def plain_text(docstring: str) -> str:
     text = _ROLE.sub(r"\1", docstring)
     text = _LITERAL.sub(r"\1", text)
     return text.replace("::\n", ":\n")
+
+
+def error_line(command: str, error: BaseException, path: object = None) -> str:
+    """How every command reports an error on stderr.
+
+    A missing file reads ``PATH: error: no such file``; a message that
+    already names its place (``path:line:col: error: ...`` from a parser,
+    ``path: error: ...``) is kept as it is; anything else reads ``realizer
+    COMMAND: error: MESSAGE``.
+    """
+    if isinstance(error, FileNotFoundError):
+        return f"{error.filename or path}: error: no such file"
+    if isinstance(error, IsADirectoryError):
+        return f"{error.filename or path}: error: is a folder, not a file"
+    if isinstance(error, OSError) and error.filename is not None:
+        return f"{error.filename}: error: {error.strerror or error}"
+    message = str(error)
+    head = message.partition(" ")[0]
+    if head.endswith(":") and ": error: " in message:
+        return message
+    if path is not None:
+        return f"{path}: error: {message}"
+    return f"realizer {command}: error: {message}"

@@ -11,8 +11,11 @@ picks another).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from realizer.commands import error_line
 
 if TYPE_CHECKING:
     import numpy as np
@@ -67,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
         else:
             values = parse_fap_assignments(args.faps or "")
     except (ValueError, OSError, RealizerError) as error:
-        print(f"realizer face: {error}")
+        print(error_line("face", error), file=sys.stderr)
         return 2
     if args.face:
         from realizer.face.paramfile import load_face

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from realizer.commands import plain_text
+from realizer.commands import error_line, plain_text
 
 
 def fap_names() -> tuple[str, ...]:
@@ -61,7 +61,7 @@ def run(args: Any) -> int:
             )
         configuration = facs_to_faps(args.aus, mapping)
     except (ConversionError, OSError) as error:
-        print(f"realizer facs: error: {error}", file=sys.stderr)
+        print(error_line("facs", error), file=sys.stderr)
         return 2
     print_values(configuration.as_dict(), args.json)
     return 0

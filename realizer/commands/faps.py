@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from realizer.commands import plain_text
+from realizer.commands import error_line, plain_text
 
 if TYPE_CHECKING:  # numpy is imported when a recording is made, not by `realizer --help`
     import numpy as np
@@ -119,7 +119,7 @@ def recording_for(args: Any, command: str) -> BlockRecording | None:
     try:
         recording = record_block(args.file.read_bytes(), args.fps, args.max_seconds)
     except (OSError, ValueError, RealizerError) as error:
-        print(f"realizer {command}: error: {args.file}: {error}", file=sys.stderr)
+        print(error_line(command, error, args.file), file=sys.stderr)
         return None
     for warning in recording.warnings:
         print(f"realizer {command}: warning: {warning}", file=sys.stderr)

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from realizer.commands import plain_text
+from realizer.commands import error_line, plain_text
 
 
 def register(subparsers: Any) -> None:
@@ -181,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             data = path.read_bytes()
         except OSError as exc:
-            print(f"{path}:0:0: error: {exc.strerror}", file=sys.stderr)
+            print(error_line("parse", exc, path), file=sys.stderr)
             status = 2
             continue
         try:

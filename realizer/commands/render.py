@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from realizer.commands import plain_text
+from realizer.commands import error_line, plain_text
 
 VIDEO_SUFFIXES = (".mp4", ".mkv", ".webm", ".mov")
 
@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         text = args.file.read_text(encoding="utf-8")
         face = load_face(args.face)
     except (ValueError, OSError, UnicodeDecodeError, RealizerError) as exc:
-        print(f"realizer render: {exc}", file=sys.stderr)
+        print(error_line("render", exc), file=sys.stderr)
         return 2
     video = args.output.suffix.lower() in VIDEO_SUFFIXES
     if video and shutil.which("ffmpeg") is None:

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from realizer.commands import plain_text
+from realizer.commands import error_line, plain_text
 
 if TYPE_CHECKING:
     from realizer.feedback import Feedback
@@ -112,7 +112,7 @@ def schedule_files(
         try:
             data = path.read_bytes()
         except OSError as exc:
-            errors.append(f"{path}:0:0: error: {exc.strerror}")
+            errors.append(error_line("schedule", exc, path))
             continue
         try:
             # Parsed here, for the error's position in *this* file (the

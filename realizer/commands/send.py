@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from realizer.commands import plain_text
+from realizer.commands import error_line, plain_text
 
 
 def register(subparsers: Any) -> None:
@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         text = args.file.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        print(f"realizer send: {exc}", file=sys.stderr)
+        print(error_line("send", exc, args.file), file=sys.stderr)
         return 2
     try:
         block_id: str | None = parse_bml(text).block.id

@@ -4,7 +4,10 @@ One process serves many characters, each a session made on first use with
 the face: submitters send BML to ws://HOST:PORT/bml, viewers watch frames on
 ws://HOST:PORT/view, and a browser shows the face at http://HOST:PORT/.
 Without tokens it binds to a loopback address only. Stops cleanly on
-SIGINT or SIGTERM (exit 0).
+SIGINT or SIGTERM (exit 0). Settings come from flags, a TOML file (--config;
+--print-config shows the result) and, for tokens, the environment
+(REALIZER_SUBMIT_TOKEN, REALIZER_VIEW_TOKEN). Logs go to stderr, one line per
+connection, refused handshake and block state at the default level, info.
 """
 
 from __future__ import annotations
@@ -12,9 +15,10 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 from typing import Any
 
-from realizer.commands import plain_text
+from realizer.commands import error_line, plain_text
 
 
 def register(subparsers: Any) -> None:
@@ -23,20 +27,22 @@ def register(subparsers: Any) -> None:
         help="run the real-time BML service (WebSocket + browser viewer)",
         description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
-    parser.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
-    parser.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 = any free)")
-    parser.add_argument("--fps", type=float, default=60.0, help="frames per second (default 60)")
-    parser.add_argument("--face", default=None, metavar="PATH", help="face parameter file")
-    parser.add_argument("--character", default="default", help="character for BML that names none")
+    parser.add_argument("--config", type=Path, metavar="FILE", help="a TOML settings file")
+    parser.add_argument(
+        "--print-config", action="store_true", help="print the effective settings and exit"
+    )
+    parser.add_argument("--host", help="address to bind (default 127.0.0.1)")
+    parser.add_argument("--port", type=int, help="port (default 8765; 0 = any free)")
+    parser.add_argument("--fps", type=float, help="frames per second (default 60)")
+    parser.add_argument("--face", metavar="PATH", help="face parameter file")
+    parser.add_argument("--character", help="character for BML that names none")
     parser.add_argument(
         "--submit-token",
-        default=os.environ.get("REALIZER_SUBMIT_TOKEN"),
-        help="token that allows submitting BML (default: $REALIZER_SUBMIT_TOKEN)",
+        help="token that allows submitting BML (better: $REALIZER_SUBMIT_TOKEN)",
     )
     parser.add_argument(
         "--view-token",
-        default=os.environ.get("REALIZER_VIEW_TOKEN"),
-        help="token that allows only viewing (default: $REALIZER_VIEW_TOKEN)",
+        help="token that allows only viewing (better: $REALIZER_VIEW_TOKEN)",
     )
     parser.add_argument(
         "--avatar",
@@ -59,11 +65,19 @@ def register(subparsers: Any) -> None:
         "(default on; REALIZER_IDLE=0 turns it off)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the idle motion (0)")
+    parser.add_argument(
+        "--log-level",
+        choices=("debug", "info", "warning", "error"),
+        help="least severe log lines shown on stderr (default info)",
+    )
+    parser.add_argument(
+        "--log-format", choices=("text", "json"), help="log lines as text (default) or JSON"
+    )
     parser.set_defaults(run=run)
 
 
-def _limits(pairs: list[str]) -> Any:
-    from dataclasses import fields, replace
+def _limits(pairs: list[str]) -> dict[str, int]:
+    from dataclasses import fields
 
     from realizer.service.limits import DEFAULT_LIMITS
 
@@ -76,7 +90,7 @@ def _limits(pairs: list[str]) -> Any:
                 f"--limit {pair!r}: expected NAME=INTEGER with NAME one of {sorted(names)}"
             )
         changes[name] = int(value)
-    return replace(DEFAULT_LIMITS, **changes)
+    return changes
 
 
 def with_avatar(assets: Any, path: str) -> Any:
@@ -107,39 +121,65 @@ def with_avatar(assets: Any, path: str) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    import logging
+    from dataclasses import replace
 
     from realizer.errors import RealizerError
+    from realizer.service import logs
+    from realizer.service.limits import DEFAULT_LIMITS
+    from realizer.service.settings import read_file, resolve, to_toml
+
+    try:
+        from_file = read_file(args.config) if args.config is not None else {}
+        flags = {
+            "host": args.host,
+            "port": args.port,
+            "fps": args.fps,
+            "face": args.face,
+            "character": args.character,
+            "submit_token": args.submit_token,
+            "view_token": args.view_token,
+            "log_level": args.log_level,
+            "log_format": args.log_format,
+            "limits": _limits(args.limit),
+        }
+        settings = resolve(from_file, flags, os.environ)
+    except (RealizerError, ValueError) as exc:
+        print(error_line("serve", exc), file=sys.stderr)
+        return 2
+    if args.print_config:
+        print(to_toml(settings), end="")
+        return 0
+    logs.configure(settings.log_level, "json" if settings.log_format == "json" else "text")
+
     from realizer.service.assets import face_assets, load_face, session_factory
     from realizer.service.server import RealizerService, ServiceConfig, serve_until_stopped
     from realizer.service.stage import Stage
 
-    logging.basicConfig(level=logging.WARNING, format="realizer: %(message)s")
     try:
-        limits = _limits(args.limit)
+        limits = replace(DEFAULT_LIMITS, **settings.limits)
         config = ServiceConfig(
-            host=args.host,
-            port=args.port,
-            fps=args.fps,
-            submit_token=args.submit_token or None,
-            view_token=args.view_token or None,
+            host=settings.host,
+            port=settings.port,
+            fps=settings.fps,
+            submit_token=settings.submit_token,
+            view_token=settings.view_token,
             limits=limits,
         )
-        face = load_face(args.face)
+        face = load_face(settings.face)
         make_session = session_factory(face, idle=args.idle, seed=args.seed)
         # The first session loads the engines' data (tens of ms): do it now,
         # not on the clock's time when the first character appears.
-        make_session(args.character)
-        stage = Stage(make_session, limits, default_character=args.character)
+        make_session(settings.character)
+        stage = Stage(make_session, limits, default_character=settings.character)
         assets = face_assets(face)
         if args.avatar:
             assets = with_avatar(assets, args.avatar)
     except (RealizerError, ValueError, OSError, ImportError) as exc:
-        print(f"realizer serve: {exc}", file=sys.stderr)
+        print(error_line("serve", exc), file=sys.stderr)
         return 2
 
     def ready(service: RealizerService) -> None:
-        host = f"[{args.host}]" if ":" in args.host else args.host
+        host = f"[{settings.host}]" if ":" in settings.host else settings.host
         print(
             f"realizer: serving on {host}:{service.port} "
             f"(viewer http://{host}:{service.port}/, BML ws://{host}:{service.port}/bml)",
@@ -150,5 +190,5 @@ def run(args: argparse.Namespace) -> int:
     try:
         return serve_until_stopped(config, stage, assets, ready=ready)
     except OSError as exc:  # e.g. the port is in use
-        print(f"realizer serve: {exc}", file=sys.stderr)
+        print(error_line("serve", exc), file=sys.stderr)
         return 2

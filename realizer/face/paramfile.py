@@ -416,8 +416,10 @@ def read_parameters(path: str | Path) -> FaceParameters:
     """Read a face parameter file from disk (see :func:`parse_parameters`)."""
     try:
         data = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise FaceFileError(f"{path}: error: no such file") from None
     except OSError as exc:
-        raise FaceFileError(f"cannot read {path}: {exc.strerror}") from None
+        raise FaceFileError(f"{path}: error: cannot read it: {exc.strerror}") from None
     return parse_parameters(data)
 
 

@@ -50,6 +50,7 @@ from realizer import __version__
 from realizer.service import codec
 from realizer.service.errors import BadMessage, CloseCode, ConfigError, PeerError
 from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
+from realizer.service.logs import log_block
 from realizer.service.messages import (
     PROTOCOL_VERSION,
     BlockMessage,
@@ -542,6 +543,8 @@ class RealizerService:
 
     def _dispatch(self, messages: Iterable[Outgoing], also: Submitter | None = None) -> None:
         for message in messages:
+            if isinstance(message, BlockEvent):  # one log line per block state (logs.py)
+                log_block(message.character, message.block_id, message.state, message.time)
             for submitter in self.submitters:
                 if submitter is also or message.character in submitter.characters:
                     self._push(submitter, _render(message, submitter.format))

@@ -1,0 +1,200 @@
+"""``realizer serve``'s settings: defaults, a TOML file, flags, the environment.
+
+A configuration file (``realizer serve --config serve.toml``) holds what an
+operator keeps under version control::
+
+    [serve]
+    host = "0.0.0.0"
+    port = 8765
+    fps = 60
+    face = "faces/doctor.xml"      # relative to the file
+    character = "doctor"
+    log_level = "info"             # debug, info, warning, error
+    log_format = "json"            # text or json
+
+    [serve.limits]                 # any named limit (protocols/README.md)
+    viewers = 200
+
+Tokens are secrets, so a file never holds them: they come from the
+environment (``REALIZER_SUBMIT_TOKEN``, ``REALIZER_VIEW_TOKEN``) or, less
+safely (other users see command lines), from ``--submit-token`` and
+``--view-token``. A flag given on the command line wins over the file, and
+the file over the defaults. ``realizer serve --print-config`` prints the
+result as TOML with the tokens masked.
+
+Errors read ``path:line:col: error: message``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from realizer.service.errors import ConfigError
+from realizer.service.limits import DEFAULT_LIMITS
+from realizer.service.logs import LEVELS
+
+TOKEN_VARIABLES = {"submit_token": "REALIZER_SUBMIT_TOKEN", "view_token": "REALIZER_VIEW_TOKEN"}
+_TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
+
+
+@dataclass(frozen=True, slots=True)
+class ServeSettings:
+    host: str = "127.0.0.1"
+    port: int = 8765
+    fps: float = 60.0
+    face: str | None = None
+    character: str = "default"
+    log_level: str = "info"
+    log_format: str = "text"
+    limits: dict[str, int] = field(default_factory=dict)
+    submit_token: str | None = None
+    view_token: str | None = None
+
+
+_TYPES: dict[str, tuple[type, ...]] = {
+    "host": (str,),
+    "port": (int,),
+    "fps": (int, float),
+    "face": (str,),
+    "character": (str,),
+    "log_level": (str,),
+    "log_format": (str,),
+}
+
+
+def _error(path: Path | str, message: str, line: int = 1, column: int = 1) -> ConfigError:
+    return ConfigError(f"{path}:{line}:{column}: error: {message}")
+
+
+def _line_of(text: str, key: str) -> int:
+    """The line where ``key`` is set (for messages), or 1."""
+    for number, line in enumerate(text.splitlines(), 1):
+        if line.strip().startswith(key):
+            return number
+    return 1
+
+
+def read_file(path: Path) -> dict[str, Any]:
+    """The ``[serve]`` table of a TOML file, checked; paths made relative to it."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: error: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise _error(path, f"cannot read it: {exc}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        found = _TOML_POSITION.search(str(exc))
+        line, column = (int(found.group(1)), int(found.group(2))) if found else (1, 1)
+        message = _TOML_POSITION.sub("", str(exc)).strip()
+        raise _error(path, message, line, column) from None
+    unknown = set(data) - {"serve"}
+    if unknown:
+        name = sorted(unknown)[0]
+        raise _error(path, f"unknown table {name!r}; expected [serve]", _line_of(text, name))
+    serve = data.get("serve", {})
+    out: dict[str, Any] = {}
+    for key, value in serve.items():
+        line = _line_of(text, key)
+        if key in TOKEN_VARIABLES:
+            raise _error(
+                path,
+                f"{key} does not belong in a file: set ${TOKEN_VARIABLES[key]} instead",
+                line,
+            )
+        if key == "limits":
+            out["limits"] = _limits(value, path, text)
+            continue
+        if key not in _TYPES:
+            known = ", ".join(sorted([*_TYPES, "limits"]))
+            raise _error(path, f"unknown setting {key!r}; known: {known}", line)
+        if not isinstance(value, _TYPES[key]) or isinstance(value, bool):
+            raise _error(path, f"{key} has the wrong type ({type(value).__name__})", line)
+        out[key] = value
+    if "face" in out:
+        out["face"] = str((path.parent / out["face"]).resolve())
+    return out
+
+
+def _limits(value: Any, path: Path, text: str) -> dict[str, int]:
+    names = {f.name for f in fields(DEFAULT_LIMITS)}
+    if not isinstance(value, dict):
+        raise _error(path, "limits must be a table ([serve.limits])", _line_of(text, "limits"))
+    out: dict[str, int] = {}
+    for name, number in value.items():
+        if name not in names:
+            raise _error(
+                path,
+                f"unknown limit {name!r}; known: {', '.join(sorted(names))}",
+                _line_of(text, name),
+            )
+        if not isinstance(number, int) or isinstance(number, bool) or number < 0:
+            raise _error(path, f"limit {name} must be a whole number >= 0", _line_of(text, name))
+        out[name] = number
+    return out
+
+
+def resolve(
+    file_settings: Mapping[str, Any],
+    flags: Mapping[str, Any],
+    environ: Mapping[str, str],
+) -> ServeSettings:
+    """Defaults, then the file, then flags that were given (not None), then tokens."""
+    merged: dict[str, Any] = {}
+    merged.update(file_settings)
+    limits = dict(file_settings.get("limits", {}))
+    for key, value in flags.items():
+        if key == "limits":
+            limits.update(value)
+        elif value is not None:
+            merged[key] = value
+    merged["limits"] = limits
+    for key, variable in TOKEN_VARIABLES.items():
+        if merged.get(key) is None:
+            merged[key] = environ.get(variable) or None
+    settings = ServeSettings(**merged)
+    if settings.log_level not in LEVELS:
+        raise ConfigError(f"log_level must be one of {', '.join(LEVELS)}")
+    if settings.log_format not in ("text", "json"):
+        raise ConfigError("log_format must be text or json")
+    if not 0 <= settings.port <= 65535:
+        raise ConfigError(f"port {settings.port} is not between 0 and 65535")
+    if not (math.isfinite(settings.fps) and 0 < settings.fps <= 1000):
+        raise ConfigError(f"fps {settings.fps} is not between 0 and 1000")
+    return settings
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value)
+
+
+def to_toml(settings: ServeSettings) -> str:
+    """The effective settings as a TOML file; tokens shown only as set or not."""
+    lines = ["[serve]"]
+    for name in ("host", "port", "fps", "face", "character", "log_level", "log_format"):
+        value = getattr(settings, name)
+        if value is None:
+            lines.append(f"# {name}: not set")
+        else:
+            lines.append(f"{name} = {_toml_value(value)}")
+    for name, variable in TOKEN_VARIABLES.items():
+        state = "set (***)" if getattr(settings, name) else "not set"
+        lines.append(f"# {name}: {state}; from ${variable} or --{name.replace('_', '-')}")
+    lines.append("")
+    lines.append("[serve.limits]")
+    effective = {f.name: getattr(DEFAULT_LIMITS, f.name) for f in fields(DEFAULT_LIMITS)}
+    effective.update(settings.limits)
+    for name in sorted(effective):
+        lines.append(f"{name} = {effective[name]}")
+    return "\n".join(lines) + "\n"

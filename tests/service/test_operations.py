@@ -1,0 +1,131 @@
+"""Operating ``realizer serve``: its log lines, its settings file, --print-config."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import logging
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from realizer.client import SubmitClient, Unauthorized
+from realizer.service import logs
+from realizer.service.errors import ConfigError
+from realizer.service.settings import read_file, resolve, to_toml
+from tests.service.conftest import UNIT
+from tests.service.process import serve_process
+
+ROOT = Path(__file__).resolve().parents[2]
+SMILE = (ROOT / "examples" / "bml" / "01_smile.xml").read_text(encoding="utf-8")
+
+
+def serve(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "realizer", "serve", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={"PATH": "/usr/bin:/bin", **(env or {})},
+    )
+
+
+def test_print_config_merges_file_flags_and_environment_and_masks_tokens(tmp_path: Path) -> None:
+    config = tmp_path / "serve.toml"
+    config.write_text(
+        '[serve]\nport = 9000\nfps = 50\nlog_format = "json"\n[serve.limits]\nviewers = 7\n'
+    )
+    done = serve(
+        "--config", str(config), "--fps", "30", "--print-config",
+        env={"REALIZER_SUBMIT_TOKEN": "very-secret"},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert "very-secret" not in out
+    assert "port = 9000" in out and "fps = 30.0" in out and 'log_format = "json"' in out
+    assert "viewers = 7" in out and "submit_token: set (***)" in out
+    assert "view_token: not set" in out
+
+
+def test_a_settings_file_never_holds_tokens_and_errors_name_their_place(tmp_path: Path) -> None:
+    secret = tmp_path / "secret.toml"
+    secret.write_text('[serve]\nport = 1\nview_token = "x"\n')
+    with pytest.raises(ConfigError, match=r"secret\.toml:3:1: error: view_token .*REALIZER_VIEW"):
+        read_file(secret)
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[serve]\nport = \n")
+    done = serve("--config", str(broken))
+    assert done.returncode == 2 and done.stderr.startswith(f"{broken}:2:")
+    assert ": error: " in done.stderr and "Traceback" not in done.stderr
+    missing = serve("--config", str(tmp_path / "nope.toml"))
+    assert missing.stderr.strip() == f"{tmp_path / 'nope.toml'}: error: no such file"
+    unknown = tmp_path / "unknown.toml"
+    unknown.write_text("[serve]\nprot = 1\n")
+    with pytest.raises(ConfigError, match=r"unknown\.toml:2:1: error: unknown setting 'prot'"):
+        read_file(unknown)
+
+
+def test_settings_are_checked() -> None:
+    with pytest.raises(ConfigError, match="log_level"):
+        resolve({"log_level": "loud"}, {}, {})
+    with pytest.raises(ConfigError, match="port"):
+        resolve({}, {"port": 70000}, {})
+    settings = resolve({}, {}, {"REALIZER_VIEW_TOKEN": "v"})
+    assert settings.view_token == "v" and "view_token: set (***)" in to_toml(settings)
+
+
+def test_the_log_has_one_json_line_per_connection_refusal_and_block_and_no_traceback() -> None:
+    with serve_process("--log-format", "json", "--submit-token", "s", "--view-token", "v") as srv:
+        with SubmitClient(srv.url, token="s") as client:
+            assert client.run_block(SMILE, timeout=30 * UNIT) == "done"
+        with pytest.raises(Unauthorized):
+            SubmitClient(srv.url, token="wrong")
+        for garbage in (b"GARBAGE\r\n\r\n", b"GET /bml HTTP/1.1\r\nUpgrade: websocket\r\n\r\n"):
+            with socket.create_connection(("127.0.0.1", srv.port)) as raw:
+                raw.sendall(garbage)
+                raw.settimeout(5 * UNIT)
+                with contextlib.suppress(TimeoutError):
+                    raw.recv(4096)
+        time.sleep(0.3 * UNIT)
+    text = "".join(srv.stderr)
+    assert "Traceback" not in text
+    records = [json.loads(line) for line in srv.stderr if line.startswith("{")]
+    events = [(r.get("event"), r.get("state"), r.get("status")) for r in records]
+    assert ("open", None, None) in events and ("close", None, None) in events
+    assert ("block", "accepted", None) in events and ("block", "done", None) in events
+    refused = [r for r in records if r.get("event") == "refused"]
+    assert refused and refused[0]["status"] == 401
+    assert "token is required" in refused[0]["message"]
+    assert all("token=s" not in r["message"] and "token=wrong" not in r["message"] for r in records)
+    block = next(r for r in records if r.get("state") == "done")
+    assert block["character"] == "Alice" and block["block"] == "smile"
+
+
+def test_a_peers_exception_loses_its_traceback_but_a_bug_keeps_it() -> None:
+    stream = io.StringIO()
+    logs.configure("info", "text", stream)
+    try:
+        try:
+            raise EOFError("peer went away mid-handshake")
+        except EOFError:
+            logging.getLogger("websockets.server").error("opening handshake failed", exc_info=True)
+        try:
+            raise KeyError("ours")
+        except KeyError:
+            logging.getLogger("realizer.service").exception("internal error")
+    finally:
+        logging.getLogger().handlers.clear()
+    lines = stream.getvalue()
+    assert "opening handshake failed: EOFError: peer went away mid-handshake" in lines
+    assert lines.count("Traceback") == 1 and "KeyError: 'ours'" in lines
+
+
+def test_tokens_are_masked_in_logged_paths() -> None:
+    assert logs.without_token("/bml?format=json&token=abc") == "/bml?format=json&token=***"
+    assert logs.without_token("/view") == "/view"
