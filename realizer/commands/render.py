@@ -3,8 +3,10 @@
 Runs the block through the same stage and session as the server, frame by
 frame at ``--fps``, deforms the face and renders each frame offscreen
 (OSMesa or EGL), writing a video through ffmpeg (``.mp4``, ``.mkv``,
-``.webm``, ``.mov``) or numbered PNG files into a folder. Shows a progress
-bar on stderr. Exit 0 when done, 1 when the block was refused, 2 when
+``.webm``, ``.mov``) or numbered PNG files into a folder (a name without a
+suffix); any other suffix is refused. Prints the BML feedback on stdout as
+the block plays, like ``realizer send``, and a progress bar on stderr when
+it is a terminal. Exit 0 when done, 1 when the block was refused, 2 when
 rendering or writing failed.
 """
 
@@ -63,34 +65,15 @@ def _size(text: str) -> tuple[int, int]:
     return int(width), int(height)
 
 
-class ProgressBar:
-    """A one-line progress bar on stderr: frames done of those expected."""
-
-    def __init__(self, total: int | None, quiet: bool) -> None:
-        self.total = total
-        self.quiet = quiet
-        self.done = 0
-
-    def step(self, seconds: float) -> None:
-        self.done += 1
-        if self.quiet:
-            return
-        if self.total:
-            share = min(1.0, self.done / self.total)
-            bar = "#" * int(share * 30)
-            line = f"\rrender [{bar:<30}] {self.done}/{self.total} frames  {seconds:6.2f} s"
-        else:
-            line = f"\rrender {self.done} frames  {seconds:6.2f} s"
-        print(line, end="", file=sys.stderr, flush=True)
-
-    def close(self) -> None:
-        if not self.quiet:
-            print(file=sys.stderr, flush=True)
-
-    def say(self, line: str) -> None:
-        """Print a line above the bar (the bar is redrawn by the next step)."""
-        clear = "" if self.quiet else "\r\033[K"
-        print(f"{clear}{line}", file=sys.stderr, flush=True)
+def check_output(path: Path) -> None:
+    """Refuse an output this command cannot write (``-o x.avi`` is not a folder of PNGs)."""
+    suffix = path.suffix.lower()
+    if suffix in VIDEO_SUFFIXES or not suffix or path.is_dir():
+        return
+    raise ValueError(
+        f"{path}: cannot write {suffix} files; use {', '.join(VIDEO_SUFFIXES)}, "
+        "or a folder name without a suffix for PNG frames"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -98,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
 
     require("render", "realizer render")
     import numpy as np
+    from tqdm import tqdm
 
     from realizer.errors import RealizerError
     from realizer.face.deform import deform
@@ -110,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
         width, height = _size(args.size)
         if not 1 <= args.fps <= 240:
             raise ValueError("--fps must be between 1 and 240")
+        check_output(args.output)
         text = args.file.read_text(encoding="utf-8")
         face = load_face(args.face)
     except (ValueError, OSError, UnicodeDecodeError, RealizerError) as exc:
@@ -129,8 +114,8 @@ def run(args: argparse.Namespace) -> int:
         tail=args.tail,
         max_duration=args.max_duration,
     )
-    for fb in offline.first_feedback:
-        print(" ".join(fb.xml.split()), file=sys.stderr)
+    for fb in offline.first_feedback:  # feedback on stdout, as `realizer send` prints it
+        print(" ".join(fb.xml.split()), flush=True)
     if not offline.accepted:
         print(f"realizer render: block {offline.block_id!r} was refused", file=sys.stderr)
         return 1
@@ -158,7 +143,15 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
     else:
         args.output.mkdir(parents=True, exist_ok=True)
-    progress = ProgressBar(expected, args.quiet)
+    # tqdm draws on stderr only when it is a terminal (disable=None)
+    progress = tqdm(
+        total=expected,
+        unit="frame",
+        desc="render",
+        file=sys.stderr,
+        disable=True if args.quiet else None,
+        leave=False,
+    )
     count = 0
     try:
         with renderer:
@@ -172,8 +165,8 @@ def run(args: argparse.Namespace) -> int:
                     save_png(image, args.output / f"frame_{frame.number:05d}.png")
                 count += 1
                 for fb in frame.feedback:  # the feedback as the block plays
-                    progress.say(" ".join(fb.xml.split()))
-                progress.step(frame.time)
+                    progress.write(" ".join(fb.xml.split()), file=sys.stdout)
+                progress.update()
     except (BrokenPipeError, OSError) as exc:
         progress.close()
         print(f"realizer render: writing failed: {exc}", file=sys.stderr)

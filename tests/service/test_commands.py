@@ -171,8 +171,8 @@ def test_render_writes_one_png_per_frame_and_the_mouth_moves(tmp_path: Path) -> 
     assert len(files) == 14
     images = [np.asarray(Image.open(f).convert("RGB"), dtype=np.int16) for f in files]
     assert images[0].shape == (96, 96, 3)
-    # the feedback is printed as the block plays, in time order, up to its end
-    progress = re.findall(r'<(?:blockProgress|syncPointProgress)[^>]* id="([^"]+)"', done.stderr)
+    # the feedback is printed on stdout as the block plays, in time order
+    progress = re.findall(r'<(?:blockProgress|syncPointProgress)[^>]* id="([^"]+)"', done.stdout)
     assert progress[0] == "r:start" and progress[-1] == "r:end"
     assert progress.index("r:smile:start") < progress.index("r:smile:end")
     assert np.array_equal(images[0], images[1])  # nothing before the smile starts
@@ -194,7 +194,9 @@ def test_render_writes_an_mp4_through_ffmpeg(tmp_path: Path) -> None:
         cwd=ROOT, capture_output=True, text=True, timeout=300 * UNIT,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert re.search(r"render .*6", done.stderr)  # the progress bar
+    assert "6 frames at 10 fps" in done.stderr
+    # the feedback on stdout, as `realizer send` prints it; no bar off a terminal
+    assert "blockProgress" in done.stdout and "\r" not in done.stderr
     probe = subprocess.run(
         ["ffprobe", "-v", "error", "-count_frames", "-select_streams", "v:0",
          "-show_entries", "stream=nb_read_frames,width", "-of", "json", str(out)],
@@ -202,3 +204,15 @@ def test_render_writes_an_mp4_through_ffmpeg(tmp_path: Path) -> None:
     )  # fmt: skip
     stream = json.loads(probe.stdout)["streams"][0]
     assert stream["width"] == 64 and int(stream["nb_read_frames"]) == 6
+
+
+def test_render_refuses_an_output_it_cannot_write(tmp_path: Path) -> None:
+    path = tmp_path / "smile.xml"
+    path.write_text(smile("v", 0, 0.5))
+    done = subprocess.run(
+        [sys.executable, "-m", "realizer", "render", str(path), "-o", str(tmp_path / "x.avi")],
+        cwd=ROOT, capture_output=True, text=True, timeout=120 * UNIT,
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert "cannot write .avi files" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "x.avi").exists()
