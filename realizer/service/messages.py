@@ -179,6 +179,51 @@ class ViewOptions:
 
 SubmitterRequest = BmlRequest | InterruptRequest
 
+#: Digits of the longest integer a JSON message may hold (Python refuses to
+#: convert more than 4,300 and spends quadratic time getting there).
+MAX_JSON_INT_DIGITS = 20
+
+
+def _refuse_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_JSON_INT_DIGITS:
+        raise BadMessage(f"an integer of more than {MAX_JSON_INT_DIGITS} digits")
+    return int(text)
+
+
+def _refuse_constant(name: str) -> float:
+    raise BadMessage(f"{name} is not JSON")
+
+
+def _load_json(text: str, what: str) -> object:
+    """``text`` as JSON, or :class:`BadMessage` (never another exception).
+
+    Linear in the text's length; deep nesting is refused by the decoder's
+    recursion limit (it answers like any malformed message), long integers
+    and the non-standard ``NaN``/``Infinity`` are refused.
+    """
+    try:
+        return json.loads(text, parse_int=_refuse_int, parse_constant=_refuse_constant)
+    except json.JSONDecodeError as exc:
+        raise BadMessage(
+            f"malformed JSON in the {what} at line {exc.lineno}, column {exc.colno}"
+        ) from None
+    except RecursionError:
+        raise BadMessage(f"the {what} is nested too deeply") from None
+    except ValueError as exc:  # a number the decoder cannot convert
+        raise BadMessage(f"a number in the {what} cannot be read") from exc
+
+
+def _text_field(value: object, name: str) -> str:
+    """A JSON string field that is text: lone surrogates (``"\\udc80"``) are not."""
+    if not isinstance(value, str):
+        raise BadMessage(f"{name} must be a string")
+    if not value.isascii():
+        try:
+            value.encode("utf-8")
+        except UnicodeEncodeError:
+            raise BadMessage(f"{name} holds a lone surrogate, which is not text") from None
+    return value
+
 
 def read_submitter_message(text: str) -> SubmitterRequest:
     """A submitter's text message as a request: plain BML or a JSON envelope.
@@ -191,20 +236,18 @@ def read_submitter_message(text: str) -> SubmitterRequest:
         return BmlRequest(type="bml", bml=text)
     if head != "{":
         raise BadMessage("expected a BML document or a JSON object")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise BadMessage(f"malformed JSON at line {exc.lineno}, column {exc.colno}") from None
+    data = _load_json(text, "message")
     if not isinstance(data, dict):
         raise BadMessage("expected a JSON object")
     kind = data.get("type")
     character = data.get("character")
-    if character is not None and not isinstance(character, str):
-        raise BadMessage("character must be a string")
+    if character is not None:
+        character = _text_field(character, "character")
     if kind == "bml":
         bml = data.get("bml")
         if not isinstance(bml, str):
             raise BadMessage("a bml message needs the BML text in its 'bml' field")
+        bml = _text_field(bml, "bml")
         request = BmlRequest(type="bml", bml=bml)
         if character is not None:
             request["character"] = character
@@ -213,26 +256,22 @@ def read_submitter_message(text: str) -> SubmitterRequest:
         block = data.get("block")
         if not isinstance(block, str) or not block:
             raise BadMessage("an interrupt message needs the block id in its 'block' field")
+        block = _text_field(block, "block")
         interrupt = InterruptRequest(type="interrupt", block=block)
         if character is not None:
             interrupt["character"] = character
         return interrupt
-    raise BadMessage(f"unknown message type {kind!r}; expected 'bml' or 'interrupt'")
+    raise BadMessage(f"unknown message type {str(kind)[:40]!r}; expected 'bml' or 'interrupt'")
 
 
 def read_subscribe_message(text: str) -> SubscribeRequest:
     """A viewer's text message; raises :class:`BadMessage` when it is not one."""
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError:
-        raise BadMessage("expected a JSON subscribe message") from None
+    data = _load_json(text, "subscribe message")
     if not isinstance(data, dict) or data.get("type") != "subscribe":
         raise BadMessage("expected a JSON object with type 'subscribe'")
     request = SubscribeRequest(type="subscribe")
     if "character" in data:
-        if not isinstance(data["character"], str):
-            raise BadMessage("character must be a string")
-        request["character"] = data["character"]
+        request["character"] = _text_field(data["character"], "character")
     if "fap" in data:
         if not isinstance(data["fap"], bool):
             raise BadMessage("fap must be true or false")
@@ -243,7 +282,11 @@ def read_subscribe_message(text: str) -> SubscribeRequest:
                 raise BadMessage(f"{name} must be true or false")
             request[name] = data[name]
     if "vertices" in data:
-        if data["vertices"] not in ("none", "float32", "int16"):
+        if not isinstance(data["vertices"], str) or data["vertices"] not in (
+            "none",
+            "float32",
+            "int16",
+        ):
             raise BadMessage("vertices must be none, float32 or int16")
         request["vertices"] = data["vertices"]
     return request
