@@ -35,8 +35,16 @@ class ServiceLimits:
     does not read; over it, the submitter is closed with 1008.
     ``subscribe_backlog``: mesh messages waiting for one viewer (each
     subscribe asks for one); over it, the viewer is closed with 1008.
+    ``feedback_stall_seconds``: how long the oldest queued feedback message
+    of a submitter over its backlog may wait before the submitter is closed
+    (a burst that a prompt reader takes closes nothing).
     ``warnings_per_block``: warningFeedback messages about one block in
     answer to one submission; the rest are counted in the last one.
+    ``viewer_characters``: characters that viewers alone (with no block
+    submitted to them) may make exist; over it a viewer of a new character
+    is refused, so viewers cannot take the submitters' characters.
+    ``character_idle_seconds``: a character with no open block, no viewer
+    and no submitter naming it is freed after this many seconds.
     """
 
     message_bytes: int = 256 * 1024
@@ -48,7 +56,10 @@ class ServiceLimits:
     submitters: int = 64
     feedback_backlog: int = 4096
     subscribe_backlog: int = 4
+    feedback_stall_seconds: int = 5
     warnings_per_block: int = 100
+    viewer_characters: int = 8
+    character_idle_seconds: int = 300
 
     def __post_init__(self) -> None:
         for name in self.__slots__:

@@ -282,13 +282,11 @@ def read_subscribe_message(text: str) -> SubscribeRequest:
                 raise BadMessage(f"{name} must be true or false")
             request[name] = data[name]
     if "vertices" in data:
-        if not isinstance(data["vertices"], str) or data["vertices"] not in (
-            "none",
-            "float32",
-            "int16",
-        ):
+        vertices = data["vertices"]
+        if vertices == "none" or vertices == "float32" or vertices == "int16":
+            request["vertices"] = vertices
+        else:
             raise BadMessage("vertices must be none, float32 or int16")
-        request["vertices"] = data["vertices"]
     return request
 
 

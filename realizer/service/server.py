@@ -41,7 +41,7 @@ import numpy as np
 import numpy.typing as npt
 from websockets.asyncio.server import Server, ServerConnection
 from websockets.asyncio.server import serve as websocket_serve
-from websockets.datastructures import Headers
+from websockets.datastructures import Headers, MultipleValuesError
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 from websockets.protocol import State
@@ -146,6 +146,20 @@ class ClockStats:
     max_tick_seconds: float = 0.0
     max_lateness_seconds: float = 0.0
     recent_lateness: deque[float] = field(default_factory=lambda: deque(maxlen=3600))
+    #: the longest time between the starts of two consecutive ticks (so
+    #: between two frames sent), seconds: a stall shows here in full, where
+    #: lateness only sees how late the frame the clock skipped to began
+    max_frame_gap_seconds: float = 0.0
+    recent_frame_gaps: deque[float] = field(default_factory=lambda: deque(maxlen=3600))
+    last_tick_began: float | None = None
+
+    def tick_began(self, at: float) -> None:
+        """Record that a tick began at ``at`` (loop seconds)."""
+        if self.last_tick_began is not None:
+            gap = at - self.last_tick_began
+            self.max_frame_gap_seconds = max(self.max_frame_gap_seconds, gap)
+            self.recent_frame_gaps.append(gap)
+        self.last_tick_began = at
 
     def summary(self) -> dict[str, float | int]:
         recent = sorted(self.recent_lateness)
@@ -162,6 +176,8 @@ class ClockStats:
             "max_lateness_seconds": self.max_lateness_seconds,
             "lateness_p50_seconds": share(0.5),
             "lateness_p99_seconds": share(0.99),
+            "max_frame_gap_seconds": self.max_frame_gap_seconds,
+            "recent_max_frame_gap_seconds": max(self.recent_frame_gaps, default=0.0),
         }
 
 
@@ -175,7 +191,8 @@ class Submitter:
     characters: set[str] = field(default_factory=set)
     #: ``/bml?strict=true``: every warning refuses the block
     strict: bool = False
-    outbox: deque[str] = field(default_factory=deque)
+    #: (loop time it was queued, text) of each message not yet sent
+    outbox: deque[tuple[float, str]] = field(default_factory=deque)
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     closing: bool = False
 
@@ -280,6 +297,7 @@ class RealizerService:
             # reading holds at most this much plus two frames (one written
             # past the limit, one in its mailbox).
             write_limit=WRITE_LIMIT,
+            create_connection=_OneRequestConnection,
         )
         self._start = loop.time()
         # asyncio's loop clock is time.monotonic(); record frame 0 on it.
@@ -343,6 +361,7 @@ class RealizerService:
                 self.stats.skipped += behind
                 self._frame += behind
             due = self._start + self._frame / fps
+            self.stats.tick_began(begun)
             self.stats.max_lateness_seconds = max(self.stats.max_lateness_seconds, begun - due)
             self.stats.recent_lateness.append(begun - due)
             started = time.perf_counter()
@@ -354,7 +373,22 @@ class RealizerService:
             self.stats.last_tick_seconds = spent
             self.stats.max_tick_seconds = max(self.stats.max_tick_seconds, spent)
             self.stats.ticks += 1
+            if self._frame % int(fps) == 0:  # once a second
+                self._forget_idle_characters(self._frame / fps)
             self._frame += 1
+
+    def _forget_idle_characters(self, now: float) -> None:
+        """Free characters with no block, no viewer and no submitter naming
+        them for ``limits.character_idle_seconds`` (viewers cannot fill the
+        character table for good)."""
+        used = {c for c, viewers in self.viewers.items() if viewers}
+        for submitter in self.submitters:
+            used.update(submitter.characters)
+        for character_id in self.stage.forget_idle(
+            now, self.limits.character_idle_seconds, keep=used
+        ):
+            self.encoders.pop(character_id, None)
+            self.viewers.pop(character_id, None)
 
     def _tick(self, number: int, now: float) -> None:
         for character_tick in self.stage.tick(now):
@@ -384,7 +418,32 @@ class RealizerService:
 
     # -- plain HTTP and the handshake --------------------------------------------------
 
-    def _process_request(self, connection: ServerConnection, request: Request) -> Response | None:
+    def _process_request(self, connection: ServerConnection, request: Request) -> Any:
+        """Answer plain HTTP, or let a WebSocket handshake go on (None).
+
+        Only single GET requests are served: another method is answered 405,
+        bytes after the request (pipelining, a body) 400, a header that must
+        appear once and appears twice 400 (401 for ``Authorization``).
+        """
+        if request.method != "GET":
+            reply = _response(http.HTTPStatus.METHOD_NOT_ALLOWED, b"only GET is served\n")
+            reply.headers["Allow"] = "GET"
+            return reply
+        try:
+            for name in _SINGLE_HEADERS:
+                if len(request.headers.get_all(name)) > 1:
+                    raise MultipleValuesError(name)
+            return self._route_request(request)
+        except MultipleValuesError as exc:
+            name = str(exc).strip("'\"")
+            status = (
+                http.HTTPStatus.UNAUTHORIZED
+                if name.lower() == "authorization"
+                else http.HTTPStatus.BAD_REQUEST
+            )
+            return _response(status, f"the header {name[:40]} appears more than once\n".encode())
+
+    def _route_request(self, request: Request) -> Response | None:
         url = urlsplit(request.path)
         if url.path in (SUBMIT_PATH, VIEW_PATH):
             return self._authorise(url.path, parse_qs(url.query), request.headers)
@@ -419,8 +478,11 @@ class RealizerService:
         submit, view = self.config.submit_token, self.config.view_token
         if submit is None and view is None:
             return None
-        token = query.get("token", [""])[0]
-        bearer = headers.get("Authorization", "")
+        tokens = query.get("token", [""])
+        if len(tokens) > 1:
+            return _response(http.HTTPStatus.UNAUTHORIZED, b"one token, please\n")
+        token = tokens[0]
+        bearer = headers.get("Authorization", "")  # twice: MultipleValuesError, 401
         if not token and bearer.lower().startswith("bearer "):
             token = bearer[7:].strip()
         may_submit = submit is not None and _same(token, submit)
@@ -438,6 +500,7 @@ class RealizerService:
         return {
             "status": "stopping" if self._stopping else "ok",
             "characters": len(self.stage.characters),
+            "maxFrameGapSeconds": self.stats.max_frame_gap_seconds,
             "characterIds": sorted(self.stage.characters),
             "viewers": sum(len(v) for v in self.viewers.values()),
             "submitters": len(self.submitters),
@@ -552,9 +615,23 @@ class RealizerService:
                 self._push(also, _render(message, also.format))
 
     def _push(self, submitter: Submitter, text: str | None) -> None:
+        """Queue ``text`` for one submitter; close only that submitter when
+        it is the one not reading.
+
+        The backlog is judged per reader: over ``feedback_backlog`` queued
+        messages, a submitter is closed (1008) only if its oldest message
+        has waited ``feedback_stall_seconds`` (it does not read), or if its
+        queue reaches four times the backlog (memory stays bounded). A burst
+        that a prompt reader is taking does not close it.
+        """
         if text is None or submitter.closing:
             return
-        if len(submitter.outbox) >= self.limits.feedback_backlog:
+        now = asyncio.get_running_loop().time()
+        queued = len(submitter.outbox)
+        if queued >= self.limits.feedback_backlog and (
+            queued >= 4 * self.limits.feedback_backlog
+            or now - submitter.outbox[0][0] >= self.limits.feedback_stall_seconds
+        ):
             submitter.closing = True
             submitter.outbox.clear()
             self._spawn(
@@ -564,7 +641,7 @@ class RealizerService:
                 )
             )
             return
-        submitter.outbox.append(text)
+        submitter.outbox.append((now, text))
         submitter.wake.set()
 
     async def _pump_submitter(self, submitter: Submitter) -> None:
@@ -573,19 +650,22 @@ class RealizerService:
                 while not submitter.outbox:
                     submitter.wake.clear()
                     await submitter.wake.wait()
-                await submitter.connection.send(submitter.outbox.popleft())
+                await submitter.connection.send(submitter.outbox.popleft()[1])
 
     # -- viewers ----------------------------------------------------------------------
 
     async def _serve_viewer(self, connection: ServerConnection, query: dict[str, str]) -> None:
         character = query.get("character", self.stage.default_character)
         try:
-            options = ViewOptions(
-                fap=query.get("fap", "true").lower() not in ("0", "false", "no"),
-                vertices=cast(Any, query.get("vertices", "none")),
-                coded=query.get("coded", "false").lower() in ("1", "true", "yes"),
-                arkit=query.get("arkit", "false").lower() in ("1", "true", "yes"),
-            )
+            try:
+                options = ViewOptions(
+                    fap=query.get("fap", "true").lower() not in ("0", "false", "no"),
+                    vertices=cast(Any, query.get("vertices", "none")),
+                    coded=query.get("coded", "false").lower() in ("1", "true", "yes"),
+                    arkit=query.get("arkit", "false").lower() in ("1", "true", "yes"),
+                )
+            except BadMessage as exc:  # a bad query parameter is a policy matter: 1008
+                raise PeerError(exc.message) from None
             self._admit_viewer(character)
         except PeerError as exc:
             await connection.close(exc.close_code, exc.message[:120])
@@ -618,7 +698,7 @@ class RealizerService:
             raise _limit(f"limit of {self.limits.viewers} viewers reached")
         if len(self.viewers.get(character, ())) >= self.limits.viewers_per_character:
             raise _limit(f"limit of {self.limits.viewers_per_character} viewers per character")
-        self.stage.character(character)
+        self.stage.character(character, for_viewer=True)
 
     def _on_subscribe(self, viewer: Viewer, text: str) -> None:
         try:
@@ -680,6 +760,51 @@ class RealizerService:
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
         return task
+
+
+class _OneRequestConnection(ServerConnection):
+    """A connection that answers 400 to bytes sent after the HTTP request.
+
+    websockets reads whatever follows the handshake request as WebSocket
+    frames, so a pipelined second request (or a request body) made it drop
+    the connection without an answer. A client must wait for the handshake's
+    answer before it sends frames (RFC 6455 section 4.1), so bytes after the
+    request's blank line, before the answer, are refused here: 400 and close.
+    At most :data:`_HEAD_BYTES` of the request are looked at.
+    """
+
+    _head = b""
+    _head_done = False
+
+    def data_received(self, data: bytes) -> None:
+        if not self._head_done:
+            head = self._head + data
+            end = head.find(b"\r\n\r\n")
+            if end >= 0:
+                self._head_done = True
+                self._head = b""
+                if end + 4 < len(head):
+                    self.transport.write(
+                        _response(
+                            http.HTTPStatus.BAD_REQUEST,
+                            b"one request per connection, with no body\n",
+                        ).serialize()
+                    )
+                    self.transport.close()
+                    return
+            elif len(head) > _HEAD_BYTES:
+                self._head_done = True  # websockets refuses oversized heads itself
+                self._head = b""
+            else:
+                self._head = head
+        super().data_received(data)
+
+
+#: Headers a request must not repeat (RFC 6455 section 4.2.1; one credential).
+_SINGLE_HEADERS = ("Upgrade", "Sec-WebSocket-Key", "Sec-WebSocket-Version", "Authorization")
+
+#: Bytes of a request head :class:`_OneRequestConnection` keeps looking at.
+_HEAD_BYTES = 64 * 1024
 
 
 def _limit(message: str) -> PeerError:

@@ -171,6 +171,9 @@ class Character:
     deadlines: dict[str, float] = field(default_factory=dict)
     interrupting: set[str] = field(default_factory=set)
     idle_since: float | None = None
+    #: made for a viewer and never given a block: counted against
+    #: ``limits.viewer_characters``
+    viewer_made: bool = False
 
 
 #: Seconds after its predicted end by which an accepted block must have
@@ -232,14 +235,18 @@ class Stage:
 
     # -- characters -------------------------------------------------------------
 
-    def character(self, character_id: str) -> Character:
+    def character(self, character_id: str, *, for_viewer: bool = False) -> Character:
         """The character named ``character_id``, made on first use.
 
         Raises :class:`LimitExceeded` when ``limits.characters`` exist
-        already, :class:`PeerError` for an id that cannot name one.
+        already, or, ``for_viewer``, when viewers alone have made
+        ``limits.viewer_characters``; :class:`PeerError` for an id that
+        cannot name one.
         """
         found = self.characters.get(character_id)
         if found is not None:
+            if not for_viewer:
+                found.viewer_made = False
             return found
         if not valid_character_id(character_id):
             raise PeerError(f"invalid character id {character_id[:80]!r}")
@@ -248,7 +255,19 @@ class Stage:
                 f"limit of {self.limits.characters} characters reached; "
                 f"character {character_id!r} not created"
             )
-        made = Character(character_id, self.make_session(character_id))
+        if for_viewer:
+            made_for_viewers = sum(1 for c in self.characters.values() if c.viewer_made)
+            if made_for_viewers >= self.limits.viewer_characters:
+                raise LimitExceeded(
+                    f"limit of {self.limits.viewer_characters} characters made for viewers "
+                    f"reached; character {character_id!r} not created"
+                )
+        made = Character(
+            character_id,
+            self.make_session(character_id),
+            idle_since=self.now,
+            viewer_made=for_viewer,
+        )
         self.characters[character_id] = made
         return made
 

@@ -195,8 +195,13 @@ def test_a_submitter_over_its_feedback_backlog_is_closed_with_1008() -> None:
         )
         connection = _Closing()
         submitter = Submitter(connection, "xml", "default")  # type: ignore[arg-type]
-        for n in range(5):
+        for n in range(5):  # a burst over the backlog, just queued: not a slow reader yet
             service._push(submitter, f"<feedback n='{n}'/>")
+        assert not submitter.closing and len(submitter.outbox) == 5
+        # the oldest message has waited feedback_stall_seconds: this reader is stuck
+        queued_at, text = submitter.outbox[0]
+        submitter.outbox[0] = (queued_at - limits.feedback_stall_seconds, text)
+        service._push(submitter, "<feedback n='5'/>")
         await asyncio.sleep(0)
         assert submitter.closing and not submitter.outbox
         return connection
@@ -204,6 +209,29 @@ def test_a_submitter_over_its_feedback_backlog_is_closed_with_1008() -> None:
     connection = asyncio.run(scenario())
     assert connection.closed is not None and connection.closed[0] == 1008
     assert "backlog over 3" in connection.closed[1]
+
+
+def test_a_burst_is_bounded_at_four_times_the_backlog() -> None:
+    from realizer.service.server import RealizerService, Submitter
+    from realizer.service.stage import Stage
+
+    async def scenario() -> tuple[_Closing, int]:
+        limits = ServiceLimits(feedback_backlog=3)
+        service = RealizerService(
+            ServiceConfig(port=0, limits=limits), Stage(FakeSession, limits), ASSETS
+        )
+        connection = _Closing()
+        submitter = Submitter(connection, "xml", "default")  # type: ignore[arg-type]
+        queued = []
+        for n in range(20):
+            service._push(submitter, f"<feedback n='{n}'/>")
+            queued.append(len(submitter.outbox))
+        await asyncio.sleep(0)
+        return connection, max(queued)
+
+    connection, most = asyncio.run(scenario())
+    assert most == 12
+    assert connection.closed is not None and connection.closed[0] == 1008
 
 
 def test_a_viewer_flooding_subscribes_is_closed_with_1008() -> None:
