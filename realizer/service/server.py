@@ -32,6 +32,7 @@ import signal
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from importlib import resources
 from typing import Any, ClassVar, cast
@@ -96,8 +97,12 @@ class ServiceConfig:
     view_token: str | None = None
     limits: ServiceLimits = DEFAULT_LIMITS
     shutdown_timeout: float = 2.0
+    #: threads that parse and plan submitted blocks, off the event loop
+    planner_threads: int = 4
 
     def __post_init__(self) -> None:
+        if not 1 <= self.planner_threads <= 64:
+            raise ConfigError(f"planner_threads must be 1 to 64, not {self.planner_threads}")
         if not 1.0 <= self.fps <= 1000.0:
             raise ConfigError(f"fps must be between 1 and 1000, not {self.fps}")
         if self.submit_token is None and self.view_token is None and not is_loopback(self.host):
@@ -267,6 +272,13 @@ class RealizerService:
         self._frame = 0  # number of the next frame
         self._stopping = False
         self._static = _StaticFiles()
+        # The clock never waits for a submitter: parsing and planning run on
+        # these threads, one message per connection at a time (in order);
+        # the stage's lock per character keeps each session single-threaded
+        # and lets the clock skip, not wait for, a character being planned.
+        self._planner = ThreadPoolExecutor(
+            max_workers=config.planner_threads, thread_name_prefix="realizer-planner"
+        )
 
     # -- life cycle ---------------------------------------------------------------
 
@@ -341,6 +353,7 @@ class RealizerService:
                 connection.transport.abort()
         for task in list(self._tasks):
             task.cancel()
+        self._planner.shutdown(wait=False, cancel_futures=True)
 
     # -- the clock ------------------------------------------------------------------
 
@@ -560,14 +573,30 @@ class RealizerService:
                         "the submitter endpoint takes text: BML or a JSON envelope",
                     )
                     break
-                self._on_submit(submitter, message)
+                await self._on_submit(submitter, message)
         finally:
             self.submitters.discard(submitter)
             pump.cancel()
 
-    def _on_submit(self, submitter: Submitter, text: str) -> None:
+    async def _on_submit(self, submitter: Submitter, text: str) -> None:
+        """Process one message on a planner thread, then send what it made.
+
+        The message's time is its arrival; the connection's next message is
+        read only when this one is done, so its messages keep their order.
+        """
+        now = self.now()
+        loop = asyncio.get_running_loop()
         try:
-            self._realize(submitter, text)
+            messages, character = await loop.run_in_executor(
+                self._planner,
+                self._realize,
+                submitter.default_character,
+                submitter.strict,
+                text,
+                now,
+            )
+        except RuntimeError:  # the planner is shut down: the server is stopping
+            return
         except Exception:
             # A bug, not the peer's fault: log it, answer without details
             # (they may be security-sensitive), keep the connection.
@@ -577,32 +606,33 @@ class RealizerService:
             )
             warning = WireFeedback(submitter.default_character, "warning", "", self.now(), xml)
             self._dispatch([warning], also=submitter)
+            return
+        if character is not None:
+            submitter.characters.add(character)
+        self._dispatch(messages, also=submitter)
 
-    def _realize(self, submitter: Submitter, text: str) -> None:
-        now = self.now()
+    def _realize(
+        self, default_character: str, strict: bool, text: str, now: float
+    ) -> tuple[tuple[Outgoing, ...], str | None]:
+        """One submitter message (on a planner thread): what to send, and the
+        character the submitter now listens to (None: none new)."""
         try:
             request = read_submitter_message(text)
         except BadMessage as exc:
-            xml = warning_feedback_xml(
-                "", submitter.default_character, exc.warning_type, exc.message
-            )
-            warning = WireFeedback(submitter.default_character, "warning", "", now, xml)
-            self._dispatch([warning], also=submitter)
-            return
+            xml = warning_feedback_xml("", default_character, exc.warning_type, exc.message)
+            return (WireFeedback(default_character, "warning", "", now, xml),), None
         if request["type"] == "bml":
             result = self.stage.submit_bml(
                 request["bml"],
                 now,
                 character=request.get("character"),
-                fallback=submitter.default_character,
-                strict=submitter.strict,
+                fallback=default_character,
+                strict=strict,
             )
-            if result.character in self.stage.characters:
-                submitter.characters.add(result.character)
-            self._dispatch(result.messages, also=submitter)
-        else:
-            character = request.get("character", submitter.default_character)
-            self._dispatch(self.stage.interrupt(character, request["block"], now), also=submitter)
+            joined = result.character if result.character in self.stage.characters else None
+            return result.messages, joined
+        character = request.get("character", default_character)
+        return self.stage.interrupt(character, request["block"], now), None
 
     def _dispatch(self, messages: Iterable[Outgoing], also: Submitter | None = None) -> None:
         for message in messages:

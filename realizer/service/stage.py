@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import logging
 import re
+import threading
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -171,6 +172,10 @@ class Character:
     deadlines: dict[str, float] = field(default_factory=dict)
     interrupting: set[str] = field(default_factory=set)
     idle_since: float | None = None
+    #: held while the session is used: a planner thread holds it while it
+    #: plans a block, and the clock skips the character for that tick
+    #: instead of waiting for it
+    lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
     #: made for a viewer and never given a block: counted against
     #: ``limits.viewer_characters``
     viewer_made: bool = False
@@ -182,16 +187,29 @@ class Character:
 END_GRACE_SECONDS = 1.0
 
 
-_ROOT_ID = re.compile(rb"<(?:\w+:)?bml\b[^>]*?\sid\s*=\s*[\"']([^\"']{0,200})[\"']")
+# Linear: a whitespace character, the literal "id", then runs that border
+# characters they cannot match.
+_ID_ATTRIBUTE = re.compile(r"\sid\s*=\s*[\"']([^\"'<>]{0,200})[\"']")
 _FEEDBACK_ID = re.compile(r"\sid\s*=\s*[\"']([^\"']*)[\"']")
 # BMLA's block status (realizer.feedback): INTERRUPTED while running, REVOKED before
 _INTERRUPTED = re.compile(r"[\s:]status\s*=\s*[\"'](?:INTERRUPTED|REVOKED)[\"']")
 
 
 def _guess_block_id(text: str) -> str:
-    """The root's ``id`` of a document the parser refused, for the warning."""
-    match = _ROOT_ID.search(text[:4096].encode("utf-8", "replace"))
-    return match.group(1).decode("utf-8", "replace") if match else ""
+    """The root's ``id`` of a document the parser refused, for the warning.
+
+    Looks at the first 4,096 characters, each once: the text between one
+    ``<`` and the next is a tag candidate; the first named ``bml`` (with any
+    prefix) that has an ``id`` gives it.
+    """
+    for piece in text[:4096].split("<")[1:]:
+        tag = piece.partition(">")[0]
+        name = tag.split(None, 1)[0] if tag[:1].strip() else ""
+        if name.rpartition(":")[2] == "bml":
+            match = _ID_ATTRIBUTE.search(tag)
+            if match:
+                return match.group(1)
+    return ""
 
 
 def _is_block_end(feedback: FeedbackLike) -> bool:
@@ -223,6 +241,9 @@ class Stage:
         self.default_character = default_character
         self.characters: dict[str, Character] = {}
         self.now = 0.0  # the latest time given to any session, seconds
+        # guards the character table and ``now`` (planner threads and the clock)
+        self._table = threading.Lock()
+        self.skipped_ticks = 0  # character ticks skipped while a block was planned
         self._parse_limits = Limits(
             max_bytes=limits.message_bytes, max_behaviours=limits.behaviours_per_block
         )
@@ -230,8 +251,9 @@ class Stage:
     # -- time -------------------------------------------------------------------
 
     def _advance(self, now: float) -> float:
-        self.now = max(self.now, now)
-        return self.now
+        with self._table:
+            self.now = max(self.now, now)
+            return self.now
 
     # -- characters -------------------------------------------------------------
 
@@ -243,6 +265,10 @@ class Stage:
         ``limits.viewer_characters``; :class:`PeerError` for an id that
         cannot name one.
         """
+        with self._table:
+            return self._character(character_id, for_viewer)
+
+    def _character(self, character_id: str, for_viewer: bool) -> Character:
         found = self.characters.get(character_id)
         if found is not None:
             if not for_viewer:
@@ -303,6 +329,15 @@ class Stage:
             found = self.character(target)
         except PeerError as exc:
             return self._refuse(target, block.id, now, exc.warning_type, exc.message)
+        with found.lock:
+            if self.characters.get(target) is not found:  # freed meanwhile: once more
+                return self.submit_bml(text, now, character=character, fallback=fallback)
+            return self._submit(found, parsed, self._advance(now))
+
+    def _submit(self, found: Character, parsed: Any, now: float) -> SubmitResult:
+        """The part of :meth:`submit_bml` that uses the session (``found.lock`` held)."""
+        block = parsed.block
+        target = found.id
         if len(found.open_blocks) >= self.limits.queued_blocks:
             return self._refuse(
                 target,
@@ -364,6 +399,11 @@ class Stage:
                     character_id, block_id, now, "NO_SUCH_TARGET", f"no character {character_id!r}"
                 )
             )
+        with found.lock:
+            return self._interrupt(found, block_id, self._advance(now))
+
+    def _interrupt(self, found: Character, block_id: str, now: float) -> tuple[Outgoing, ...]:
+        character_id = found.id
         if block_id in found.open_blocks:
             found.interrupting.add(block_id)
         messages: list[Outgoing] = []
@@ -397,32 +437,46 @@ class Stage:
         now = self._advance(now)
         ticks: list[CharacterTick] = []
         for found in list(self.characters.values()):
-            try:
-                found.session.tick(now)
-                messages = self._route(found, found.session.take_feedback())
-                frame = found.session.frame(now)
-            except Exception:
-                # A failing session must not take every other character down
-                # with it: skip its frame this tick, say so in the log, fail
-                # its open blocks (each accepted block ends) and give the
-                # character a fresh session, so it accepts blocks again.
-                logger.exception("session of character %r failed at %.3f s", found.id, now)
-                lost = [
-                    *self._route(found, self._take(found)),
-                    *self._fail_all(found, now, "the character's session failed"),
-                ]
-                found.session = self.make_session(found.id)
-                try:
-                    fresh = found.session.frame(now)
-                except Exception:
-                    continue
-                ticks.append(CharacterTick(found.id, now, fresh, tuple(lost)))
+            # The clock never waits for a submitter: a character whose block
+            # a planner thread is planning skips this tick (its frame comes
+            # at the next one); every other character ticks on time.
+            if not found.lock.acquire(blocking=False):
+                self.skipped_ticks += 1
                 continue
-            overdue = [b for b, deadline in found.deadlines.items() if deadline < now]
-            for block_id in overdue:
-                messages.extend(self._fail(found, block_id, now, "the block did not end in time"))
-            ticks.append(CharacterTick(found.id, now, frame, tuple(messages)))
+            try:
+                tick = self._tick_character(found, now)
+            finally:
+                found.lock.release()
+            if tick is not None:
+                ticks.append(tick)
         return ticks
+
+    def _tick_character(self, found: Character, now: float) -> CharacterTick | None:
+        """One character's tick (``found.lock`` held)."""
+        try:
+            found.session.tick(now)
+            messages = self._route(found, found.session.take_feedback())
+            frame = found.session.frame(now)
+        except Exception:
+            # A failing session must not take every other character down
+            # with it: skip its frame this tick, say so in the log, fail
+            # its open blocks (each accepted block ends) and give the
+            # character a fresh session, so it accepts blocks again.
+            logger.exception("session of character %r failed at %.3f s", found.id, now)
+            lost = [
+                *self._route(found, self._take(found)),
+                *self._fail_all(found, now, "the character's session failed"),
+            ]
+            found.session = self.make_session(found.id)
+            try:
+                fresh = found.session.frame(now)
+            except Exception:
+                return None
+            return CharacterTick(found.id, now, fresh, tuple(lost))
+        overdue = [b for b, deadline in found.deadlines.items() if deadline < now]
+        for block_id in overdue:
+            messages.extend(self._fail(found, block_id, now, "the block did not end in time"))
+        return CharacterTick(found.id, now, frame, tuple(messages))
 
     def forget_idle(self, now: float, idle_seconds: float, keep: Iterable[str] = ()) -> list[str]:
         """Free characters that have had no open block for ``idle_seconds``.
@@ -433,16 +487,22 @@ class Stage:
         """
         kept = set(keep)
         kept.add(self.default_character)
-        freed = [
-            c.id
-            for c in self.characters.values()
-            if c.id not in kept
-            and not c.open_blocks
-            and c.idle_since is not None
-            and now - c.idle_since >= idle_seconds
-        ]
-        for character_id in freed:
-            del self.characters[character_id]
+        freed: list[str] = []
+        with self._table:
+            for found in list(self.characters.values()):
+                if (
+                    found.id in kept
+                    or found.open_blocks
+                    or found.idle_since is None
+                    or now - found.idle_since < idle_seconds
+                    or not found.lock.acquire(blocking=False)  # being planned
+                ):
+                    continue
+                try:
+                    del self.characters[found.id]
+                    freed.append(found.id)
+                finally:
+                    found.lock.release()
         return freed
 
     # -- helpers ----------------------------------------------------------------
