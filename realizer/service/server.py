@@ -29,6 +29,7 @@ import ipaddress
 import json
 import logging
 import signal
+import sys
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
@@ -79,6 +80,9 @@ logger = logging.getLogger("realizer.service")
 #: viewer's frames go to its one-frame mailbox instead): about a dozen
 #: vertex frames of the default face.
 WRITE_LIMIT = 256 * 1024
+
+#: Seconds a thread waiting for the GIL waits at most while the service runs.
+SWITCH_INTERVAL = 0.001
 
 SUBMIT_PATH = "/bml"
 VIEW_PATH = "/view"
@@ -311,6 +315,11 @@ class RealizerService:
             write_limit=WRITE_LIMIT,
             create_connection=_OneRequestConnection,
         )
+        # Planner threads compete with the loop for the GIL; a thread that
+        # wants it waits at most the switch interval (5 ms by default). A
+        # shorter one lets the clock's tick take the GIL back sooner while a
+        # block is planned (a process-wide setting: the service owns it).
+        sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL))
         self._start = loop.time()
         # asyncio's loop clock is time.monotonic(); record frame 0 on it.
         self.stats.started = self._start
@@ -607,6 +616,10 @@ class RealizerService:
             warning = WireFeedback(submitter.default_character, "warning", "", self.now(), xml)
             self._dispatch([warning], also=submitter)
             return
+        if character == "":  # a message the endpoint could not read: only its sender hears
+            for message in messages:
+                self._push(submitter, _render(message, submitter.format))
+            return
         if character is not None:
             submitter.characters.add(character)
         self._dispatch(messages, also=submitter)
@@ -615,12 +628,14 @@ class RealizerService:
         self, default_character: str, strict: bool, text: str, now: float
     ) -> tuple[tuple[Outgoing, ...], str | None]:
         """One submitter message (on a planner thread): what to send, and the
-        character the submitter now listens to (None: none new)."""
+        character the submitter now listens to (None: none new; ``""``: the
+        message was unreadable and only its sender is answered)."""
         try:
             request = read_submitter_message(text)
         except BadMessage as exc:
+            # the sender's own mistake: told to the sender alone (see _on_submit)
             xml = warning_feedback_xml("", default_character, exc.warning_type, exc.message)
-            return (WireFeedback(default_character, "warning", "", now, xml),), None
+            return (WireFeedback(default_character, "warning", "", now, xml),), ""
         if request["type"] == "bml":
             result = self.stage.submit_bml(
                 request["bml"],
