@@ -331,10 +331,12 @@ class Stage:
             return self._refuse(target, block.id, now, exc.warning_type, exc.message)
         with found.lock:
             if self.characters.get(target) is not found:  # freed meanwhile: once more
-                return self.submit_bml(text, now, character=character, fallback=fallback)
-            return self._submit(found, parsed, self._advance(now))
+                return self.submit_bml(
+                    text, now, character=character, fallback=fallback, strict=strict
+                )
+            return self._submit(found, parsed, self._advance(now), strict)
 
-    def _submit(self, found: Character, parsed: Any, now: float) -> SubmitResult:
+    def _submit(self, found: Character, parsed: Any, now: float, strict: bool) -> SubmitResult:
         """The part of :meth:`submit_bml` that uses the session (``found.lock`` held)."""
         block = parsed.block
         target = found.id
