@@ -24,7 +24,7 @@ from realizer.errors import RealizerError
 
 #: Extra -> the top-level import names it provides (what :func:`require` checks).
 EXTRAS: dict[str, tuple[str, ...]] = {
-    "render": ("OpenGL", "PIL", "imageio", "imageio_ffmpeg", "tqdm"),
+    "render": ("OpenGL", "PIL", "tqdm"),
     "plots": ("matplotlib",),
     "bench": ("trimesh", "psutil"),
 }

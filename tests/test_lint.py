@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-CODE = ["realizer", "tests", "benchmarks", "scripts"]
+CODE = ["realizer", "tests", "benchmarks", "scripts", "docker"]
 
 
 def tool(module: str, *args: str) -> subprocess.CompletedProcess[str]:
