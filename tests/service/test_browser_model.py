@@ -19,12 +19,13 @@ from tests.service.test_end_to_end import real_assets, real_face, real_sessions
 
 EVALUATE = """async (vectors) => {
   const fm = await import('/static/facemodel.js');
+  const { decodeMsgpack } = await import('/static/realizer-client.js');
   const ws = new WebSocket(`ws://${location.host}/view?character=gpu&model=true&fap=false`);
   ws.binaryType = 'arraybuffer';
   const got = await new Promise((resolve, reject) => {
     const seen = {};
     ws.onmessage = (event) => {
-      const m = window.msgpackDecode(event.data);
+      const m = decodeMsgpack(event.data);
       seen[m.type] = m;
       if (seen.mesh && seen.model) { ws.close(); resolve(seen); }
     };
@@ -58,7 +59,6 @@ def test_the_shader_and_the_javascript_deform_like_the_server() -> None:
             page = browser.new_page()
             page.set_default_timeout(60_000 * UNIT)
             page.goto(f"http://127.0.0.1:{service.port}/health")
-            page.add_script_tag(url="/static/msgpack.js")
             result: dict[str, Any] = page.evaluate(EVALUATE, [v.tolist() for v in vectors])
         finally:
             browser.close()

@@ -9,6 +9,9 @@ import { OrbitControls } from "three/addons/OrbitControls.js";
 import * as fm from "/static/facemodel.js";
 import { FapStreamDecoder, decodeArkit, ARKIT_NAMES } from "/static/fapcodec.js";
 import { AudioPlayer } from "/static/audio.js";
+import {
+  SubmitClient, ViewClient, Unauthorized, Forbidden, ServerBusy, ServerUnavailable, ConnectionLost,
+} from "/static/realizer-client.js";
 
 const $ = (id) => document.getElementById(id);
 const canvas = $("face");
@@ -23,35 +26,32 @@ window.realizerViewer = state;  // for tests and for curious users
 
 function wsBase() { return (location.protocol === "https:" ? "wss://" : "ws://") + location.host; }
 function token() { return $("token").value; }
-function query(extra) {
-  const params = new URLSearchParams(extra);
-  if (token()) params.set("token", token());
-  return params.toString();
-}
 function setStatus(text, ok) { const s = $("status"); s.textContent = text; s.className = ok ? "ok" : "bad"; }
 
 // -- plain words for refused connections ---------------------------------------------------
 
-// A WebSocket refused at the handshake closes with 1006 and no reason; ask the same path
-// over plain HTTP, which answers 401/403 with the server's words.
-async function whyRefused(path) {
-  try {
-    const response = await fetch(`${path}?${query({})}`);
-    if (response.status === 401) return token()
+// The client module (realizer-client.js) turns a refused handshake into Unauthorized (401)
+// or Forbidden (403), a limit into ServerBusy or ConnectionLost with the server's reason.
+function plainWords(error, path) {
+  if (error instanceof Unauthorized) {
+    return token()
       ? "the server refused this token: check it and press Watch again"
       : "this server needs a token: enter it in the token box and press Watch again";
-    if (response.status === 403) return "this token may only watch; sending BML needs a submit token";
-    if (response.status === 503) return "the server is shutting down";
-  } catch (error) { return "the server cannot be reached"; }
-  return "the connection failed (is the server running?)";
-}
-function closeWords(event) {
-  if (event.code === 1008 || event.code === 1013) {
-    return `the server refused: ${event.reason || "a limit was reached"}`;
   }
-  if (event.code === 1001) return "the server is shutting down";
-  if (event.code === 1000) return "closed";
-  return event.reason ? `closed: ${event.reason}` : `closed (${event.code})`;
+  if (error instanceof Forbidden) {
+    return path === "/bml"
+      ? "this token may only watch; sending BML needs a submit token"
+      : "this token may not watch";
+  }
+  if (error instanceof ServerBusy) return `the server is busy: ${error.reason || "try again later"}`;
+  if (error instanceof ConnectionLost) {
+    if (error.code === 1008) return `the server refused: ${error.reason || "a limit was reached"}`;
+    if (error.code === 1001) return "the server is shutting down";
+    if (error.code === 1000) return "closed";
+    return error.reason ? `closed: ${error.reason}` : "the connection was lost";
+  }
+  if (error instanceof ServerUnavailable) return "the server cannot be reached (is it running?)";
+  return String(error && error.message ? error.message : error);
 }
 
 // -- three.js scene ---------------------------------------------------------------------------
@@ -202,8 +202,7 @@ function serverNow() {
   return f ? f.t + (performance.now() - f.at) / 1000 : 0;
 }
 
-function onViewerMessage(c, data) {
-  const m = window.msgpackDecode(data);
+function onViewerMessage(c, m) {
   if (m.type === "mesh") {
     c.mesh = m; c.model = null;
     c.decoder = new FapStreamDecoder(m.fapSteps ? new Uint16Array(m.fapSteps.slice().buffer) : null, m.fapGroups);
@@ -253,33 +252,38 @@ function onFrame(c, m) {
 
 function watchCharacter(id) {
   if (state.characters.has(id)) return state.characters.get(id);
-  const c = { id, ws: null, mesh: null, model: null, faps: new Float64Array(68), frames: 0,
+  const c = { id, view: null, mesh: null, model: null, faps: new Float64Array(68), frames: 0,
               decoder: new FapStreamDecoder() };
   state.characters.set(id, c);
-  const params = { character: id, model: "true", vertices: "none" };
-  if (state.stream === "coded") { params.coded = "true"; params.fap = "false"; }
+  const options = { character: id, model: true, vertices: "none", token: token() || undefined };
+  if (state.stream === "coded") { options.coded = true; options.fap = false; }
   if (state.stream === "arkit" || (state.avatarOffered && state.characters.size === 1)) {
-    params.arkit = "true";
+    options.arkit = true;
   }
-  const ws = new WebSocket(`${wsBase()}/view?${query(params)}`);
-  ws.binaryType = "arraybuffer";
-  c.ws = ws;
-  let opened = false;
-  ws.onopen = () => { opened = true; setStatus(`watching ${[...state.characters.keys()].join(", ")}`, true); };
-  ws.onmessage = (event) => onViewerMessage(c, event.data);
-  ws.onclose = async (event) => {
-    if (c.ws !== ws) return;
-    const words = opened ? closeWords(event) : await whyRefused("/view");
-    setStatus(`viewer of ${id}: ${words}`, false);
-    state.errors.push(words);
-  };
+  (async () => {
+    let view;
+    try {
+      view = await ViewClient.connect(wsBase(), options);
+      if (!state.characters.has(id) || state.characters.get(id) !== c) { view.close(); return; }
+      c.view = view;
+      setStatus(`watching ${[...state.characters.keys()].join(", ")}`, true);
+      onViewerMessage(c, view.mesh);
+      for (;;) onViewerMessage(c, await view.receive());
+    } catch (error) {
+      if (c.view !== view && view) return;  // closed by us (switching characters)
+      if (c.closed) return;
+      const words = plainWords(error, "/view");
+      setStatus(`viewer of ${id}: ${words}`, false);
+      state.errors.push(words);
+    }
+  })();
   return c;
 }
 
 function unwatchAll() {
   for (const c of state.characters.values()) {
-    const ws = c.ws; c.ws = null;
-    if (ws) ws.close(1000, "switching character");
+    c.closed = true;
+    if (c.view) c.view.close();
     if (c.group) scene.remove(c.group);
   }
   state.characters.clear();
@@ -298,26 +302,39 @@ function log(kind, text) {
 }
 
 function submitter() {
-  if (state.submitter && state.submitter.readyState <= 1) return Promise.resolve(state.submitter);
-  return new Promise((resolve) => {
-    const ws = new WebSocket(`${wsBase()}/bml?${query({ format: "json" })}`);
-    state.submitter = ws;
-    let opened = false;
-    ws.onopen = () => { opened = true; resolve(ws); };
-    ws.onmessage = (event) => onSubmitterMessage(JSON.parse(event.data));
-    ws.onclose = async (event) => {
-      const words = opened ? closeWords(event) : await whyRefused("/bml");
-      log("warning", `submitter: ${words}`);
-      state.errors.push(words);
-      if (!opened) resolve(null);
-    };
-  });
+  if (!state.submitter) {
+    state.submitter = (async () => {
+      try {
+        const client = await SubmitClient.connect(wsBase(), { token: token() || undefined });
+        onSubmitterMessage(client.welcome);
+        (async () => {
+          try {
+            for (;;) onSubmitterMessage(await client.receive());
+          } catch (error) {
+            const words = plainWords(error, "/bml");
+            log("warning", `submitter: ${words}`);
+            state.errors.push(words);
+            state.submitter = null;
+          }
+        })();
+        return client;
+      } catch (error) {
+        const words = plainWords(error, "/bml");
+        log("warning", `submitter: ${words}`);
+        state.errors.push(words);
+        state.submitter = null;
+        return null;
+      }
+    })();
+  }
+  return state.submitter;
 }
 
 async function send(message) {
-  const ws = await submitter();
-  if (!ws || ws.readyState !== 1) return;
-  ws.send(JSON.stringify(message));
+  const client = await submitter();
+  if (!client) return;
+  if (message.type === "bml") client.submit(message.bml, { character: message.character });
+  else client.interrupt(message.block, { character: message.character });
 }
 
 function currentCharacter() { return $("character").value.trim() || "default"; }
@@ -477,7 +494,14 @@ function draw() {
     : "neutral";
 }
 
-$("watch").onclick = () => { unwatchAll(); watchCharacter(currentCharacter()); refreshCharacters(); };
+$("watch").onclick = async () => {
+  unwatchAll();
+  const old = state.submitter;  // the token may have changed: connect again when needed
+  state.submitter = null;
+  if (old) { const client = await old; if (client) client.close(); }
+  watchCharacter(currentCharacter());
+  refreshCharacters();
+};
 $("add").onclick = () => { watchCharacter(currentCharacter()); refreshCharacters(); };
 $("stream").onchange = () => {
   state.stream = $("stream").value;
