@@ -8,6 +8,10 @@ suffix); any other suffix is refused. Prints the BML feedback on stdout as
 the block plays, like ``realizer send``, and a progress bar on stderr when
 it is a terminal. Exit 0 when done, 1 when the block was refused, 2 when
 rendering or writing failed.
+
+``FILE`` may also be a FAP file: the text ``.fap`` format or an MPEG-4
+coded one (``realizer faps --coded dct|lowdelay``), rendered at its own
+frame rate.
 """
 
 from __future__ import annotations
@@ -76,6 +80,37 @@ def check_output(path: Path) -> None:
     )
 
 
+def _fap_input(path: Path) -> Any:
+    """The frames of a FAP file (text ``.fap``, or MPEG-4 coded by ``realizer faps
+    --coded``), or None when ``path`` is something else (BML)."""
+    from realizer.face.fapcoding import DCT_MAGIC, STREAM_MAGIC, read_any_fap_file
+
+    with open(path, "rb") as handle:
+        head = handle.read(8)
+    if head in (DCT_MAGIC, STREAM_MAGIC) or path.suffix.lower() == ".fap":
+        return read_any_fap_file(path)
+    return None
+
+
+def _replay(recorded: Any) -> Any:
+    """A recorded FAP stream in the shape of :func:`run_offline`'s result."""
+    from types import SimpleNamespace
+
+    frames = [
+        SimpleNamespace(
+            number=n,
+            time=n / recorded.fps,
+            frame=SimpleNamespace(values=recorded.values[n], mask=recorded.mask[n]),
+            feedback=(),
+        )
+        for n in range(recorded.values.shape[0])
+    ]
+    end = (len(frames) - 1) / recorded.fps if frames else 0.0
+    return SimpleNamespace(
+        frames=frames, first_feedback=(), accepted=True, block_id="", predicted_end=end
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from realizer.extras import require
 
@@ -95,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
         if not 1 <= args.fps <= 240:
             raise ValueError("--fps must be between 1 and 240")
         check_output(args.output)
-        text = args.file.read_text(encoding="utf-8")
+        recorded = _fap_input(args.file)  # a .fap or MPEG-4 coded FAP file, not BML
+        text = "" if recorded is not None else args.file.read_text(encoding="utf-8")
         face = load_face(args.face)
     except (ValueError, OSError, UnicodeDecodeError, RealizerError) as exc:
         print(error_line("render", exc), file=sys.stderr)
@@ -105,15 +141,19 @@ def run(args: argparse.Namespace) -> int:
         print("realizer render: ffmpeg is not installed (scripts/setup.sh)", file=sys.stderr)
         return 2
 
-    stage = Stage(session_factory(face, idle=args.idle, seed=args.seed))
-    offline = run_offline(
-        stage,
-        text,
-        args.fps,
-        character=args.character,
-        tail=args.tail,
-        max_duration=args.max_duration,
-    )
+    if recorded is not None:
+        offline = _replay(recorded)
+        args.fps = recorded.fps
+    else:
+        stage = Stage(session_factory(face, idle=args.idle, seed=args.seed))
+        offline = run_offline(
+            stage,
+            text,
+            args.fps,
+            character=args.character,
+            tail=args.tail,
+            max_duration=args.max_duration,
+        )
     for fb in offline.first_feedback:  # feedback on stdout, as `realizer send` prints it
         print(" ".join(fb.xml.split()), flush=True)
     if not offline.accepted:

@@ -161,3 +161,38 @@ def test_faps_coded_files_are_read_back_by_face(tmp_path) -> None:  # type: igno
     )  # fmt: skip
     rows = csv.read_text().splitlines()
     assert rows[0].startswith("time,eyeBlinkLeft,") and len(rows) == reference.values.shape[0] + 1
+
+
+@pytest.mark.opengl
+@pytest.mark.slow
+def test_render_plays_a_coded_file_back(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    from pathlib import Path
+
+    from PIL import Image
+
+    from realizer.cli import main
+    from realizer.face.default import load_default_face
+    from realizer.face.render import FaceRenderer, RenderUnavailableError
+
+    try:
+        FaceRenderer(load_default_face(), 8, 8).close()
+    except RenderUnavailableError as error:
+        pytest.skip(f"no OpenGL offscreen context here: {error}")
+    root = Path(__file__).resolve().parents[2]
+    coded = tmp_path / "smile.dct"
+    assert main(["faps", str(root / "examples/bml/01_smile.xml"), "--coded", "dct",
+                 "-o", str(coded)]) == 0  # fmt: skip
+    frames = read_any_fap_file_frames(coded)
+    out = tmp_path / "frames"
+    assert main(["render", str(coded), "-o", str(out), "--size", "96x96", "--quiet"]) == 0
+    images = sorted(out.glob("frame_*.png"))
+    assert len(images) == frames
+    first = np.asarray(Image.open(images[0]), dtype=np.int16)
+    busiest = np.asarray(Image.open(images[len(images) // 2]), dtype=np.int16)
+    assert np.abs(busiest - first).sum() > 0  # the smile plays
+
+
+def read_any_fap_file_frames(path) -> int:  # type: ignore[no-untyped-def]
+    from realizer.face.fapcoding import read_any_fap_file
+
+    return int(read_any_fap_file(path).values.shape[0])
