@@ -39,7 +39,7 @@ def chromium() -> None:
 def test_the_viewer_loads_everything_from_its_server_and_shows_two_characters() -> None:
     from playwright.sync_api import sync_playwright
 
-    timeout = 30_000 * UNIT
+    timeout = 60_000 * UNIT
     with (
         service_in_thread(real_sessions(), real_assets()) as service,
         sync_playwright() as playwright,
@@ -88,7 +88,7 @@ def test_the_viewer_loads_everything_from_its_server_and_shows_two_characters() 
 def test_the_page_decodes_the_faps_the_server_sent(stream: str) -> None:
     from playwright.sync_api import sync_playwright
 
-    timeout = 30_000 * UNIT
+    timeout = 60_000 * UNIT
     steps = quant_steps() * DEFAULT_FAP_QUANT
     with (
         service_in_thread(real_sessions(), real_assets(), fps=25.0) as service,
@@ -154,15 +154,15 @@ def test_a_refused_connection_reads_as_plain_words() -> None:
             page.goto(f"http://127.0.0.1:{service.port}/?character=Dee")
             page.wait_for_function(
                 "document.getElementById('status').textContent.includes('token')",
-                timeout=30_000 * UNIT,
+                timeout=60_000 * UNIT,
             )
             status = page.inner_text("#status")
             page.goto(f"http://127.0.0.1:{service.port}/?character=Dee&token=v1ew")
-            page.wait_for_function("window.realizerViewer.frames > 2", timeout=30_000 * UNIT)
+            page.wait_for_function("window.realizerViewer.frames > 2", timeout=60_000 * UNIT)
             page.click("#send")
             page.wait_for_function(
                 "window.realizerViewer.errors.some(e => e.includes('submit token'))",
-                timeout=30_000 * UNIT,
+                timeout=60_000 * UNIT,
             )
         finally:
             browser.close()
@@ -186,7 +186,7 @@ def test_a_gltf_avatar_follows_the_arkit_stream_and_names_its_missing_targets() 
     report = avatar_report(glb)
     assert report.missing == ("cheekPuff", "tongueOut")
     assets = replace(real_assets(), avatar=glb, avatar_missing=report.missing)
-    timeout = 30_000 * UNIT
+    timeout = 60_000 * UNIT
     with service_in_thread(real_sessions(), assets) as service, sync_playwright() as playwright:
         browser = launch(playwright)
         try:

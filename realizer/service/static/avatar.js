@@ -40,6 +40,7 @@ export async function loadAvatar(scene, state, THREE) {
       });
       this.weights = Array.from(weights);
       this.frames++;
+      state.dirty = true;
     },
     pose(angles) {  // head pitch, yaw, roll, left eye pitch, yaw, right eye pitch, yaw (radians)
       const turn = (bone, key, pitch, yaw, roll) => {

@@ -66,6 +66,7 @@ const camera = new THREE.PerspectiveCamera(28, canvas.clientWidth / canvas.clien
 camera.position.set(0, 0, 0.75);
 const controls = new OrbitControls(camera, canvas);
 controls.enableDamping = false;
+controls.addEventListener("change", () => { state.dirty = true; });
 scene.add(new THREE.HemisphereLight(0xfff4e8, 0x30343a, 1.1));
 const key = new THREE.DirectionalLight(0xffffff, 2.0);
 key.position.set(0.5, 0.7, 1.2);
@@ -141,6 +142,7 @@ function buildMesh(c) {
   c.group.add(object);
   scene.add(c.group);
   layout();
+  state.dirty = true;
   if (state.characters.size === 1 || !state.framed) frameCamera(neutral);
   state.gpu = [...state.characters.values()].every((x) => x.gpu);
 }
@@ -247,6 +249,7 @@ function onFrame(c, m) {
   }
   c.frames++;
   state.frames++;
+  state.dirty = true;
   state.lastFrame = { n: m.n, t: m.t, faps: count, at: performance.now(), character: c.id };
 }
 
@@ -288,6 +291,7 @@ function unwatchAll() {
   }
   state.characters.clear();
   state.framed = false;
+  state.dirty = true;
 }
 
 // -- submitter: BML and feedback -----------------------------------------------------------
@@ -483,10 +487,18 @@ async function refreshCharacters() {
 
 // -- the loop ---------------------------------------------------------------------------------
 
-function draw() {
+// Draw only when something changed (a frame, the camera, a mesh): software WebGL on a busy
+// machine spends most of its time here otherwise. The timeline redraws at most 10 times a
+// second.
+let lastTimeline = 0;
+function draw(now) {
   requestAnimationFrame(draw);
-  controls.update();
-  renderer.render(scene, camera);
+  if (state.dirty) {
+    state.dirty = false;
+    renderer.render(scene, camera);
+  }
+  if (now - lastTimeline < 100) return;
+  lastTimeline = now;
   drawTimeline();
   const f = state.lastFrame;
   $("frameinfo").textContent = f
