@@ -20,7 +20,7 @@ const SPACING_M = 0.26;  // between characters side by side
 const state = {
   meshLoaded: false, frames: 0, lastFrame: null, feedback: [], characters: new Map(),
   submitter: null, blocks: new Map(), gpu: false, decoded: [], errors: [],
-  stream: "fap", audio: null, avatar: null,
+  stream: "fap", audio: null, avatar: null, drawn: [],
 };
 window.realizerViewer = state;  // for tests and for curious users
 
@@ -216,7 +216,10 @@ function onViewerMessage(c, m) {
   } else if (m.type === "frame") {
     onFrame(c, m);
   } else if (m.type === "audio") {
+    state.audioChunks = (state.audioChunks || 0) + 1;
     if (state.audio) state.audio.push(c.id, m, serverNow());
+  } else if (m.type === "audioCut") {
+    if (state.audio) state.audio.cut(c.id, m.t);
   } else if (m.type === "error") {
     log("warning", `viewer of ${c.id}: ${m.reason}`);
   }
@@ -496,6 +499,10 @@ function draw(now) {
   if (state.dirty) {
     state.dirty = false;
     renderer.render(scene, camera);
+    if (state.lastFrame) {  // when each frame's picture was drawn (audio sync is measured on it)
+      state.drawn.push({ t: state.lastFrame.t, at: performance.now() });
+      if (state.drawn.length > 600) state.drawn.shift();
+    }
   }
   if (now - lastTimeline < 100) return;
   lastTimeline = now;
