@@ -46,3 +46,22 @@ def test_coded_and_arkit_streams_decode_to_the_servers_faps() -> None:
         moving += bool(reference[n])
     assert moving > 5  # the smile was on
     assert max(smiles) > 0.08 and smiles[0] < 0.02  # and the ARKit weights smiled
+
+
+def test_coded_and_arkit_messages_match_the_protocol_schemas() -> None:
+    import pytest
+
+    pytest.importorskip("jsonschema", reason="jsonschema comes with the dev extra")
+    from tests.service.test_protocol_schemas import as_json, check
+
+    with service_in_thread(real_sessions(), real_assets(), fps=25.0) as service:
+        url = f"ws://127.0.0.1:{service.port}"
+        with ViewClient(url, character="Sch", coded=True, arkit=True) as view:
+            check("mesh", as_json(view.mesh))
+            frames = list(view.frames(30, timeout=10 * UNIT))
+            view.subscribe(coded=False, arkit=True)
+    for frame in frames:
+        assert "coded" in frame and "arkit" in frame
+        check("frame", as_json(frame))
+    assert any("codedRef" in frame for frame in frames)
+    check("subscribe-request", {"type": "subscribe", "coded": False, "arkit": True})
