@@ -572,10 +572,27 @@ class FaceRig:
         self._summed_matrix = sp.csr_matrix(
             (vals, (local, cols)), shape=(unique_rows.size, len(fap))
         )
+        self._summed_csc = self._summed_matrix.tocsc()
+        self._summed_chosen: dict[bytes, tuple[np.ndarray, sp.csr_matrix]] = {}
         self._summed_fap = np.asarray(fap, dtype=np.int64)
         self._summed_low = np.asarray(low)
         self._summed_high = np.asarray(high)
         self._summed_zero = np.clip(0.0, self._summed_low, self._summed_high)
+
+    def _summed_for(self, active: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        """The rows and the sub-matrix of the summed columns ``active``: a
+        frame costs what its set tables touch, not every table of the face
+        (an animation keeps the same columns set for many frames: cached)."""
+        key = active.tobytes()
+        chosen = self._summed_chosen.get(key)
+        if chosen is None:
+            sub = self._summed_csc[:, active].tocsr()
+            used = np.flatnonzero(np.diff(sub.indptr))
+            chosen = (self._summed_rows[used], sub[used])
+            if len(self._summed_chosen) >= SELECTION_CACHE:
+                self._summed_chosen.clear()
+            self._summed_chosen[key] = chosen
+        return chosen
 
     def _build_transforms(
         self, transforms: list[tuple[_Transform, np.ndarray, np.ndarray | None]]
@@ -670,8 +687,10 @@ class FaceRig:
                 np.clip(values[self._summed_fap], self._summed_low, self._summed_high)
                 - self._summed_zero
             ) * self.fapu_per_fap[self._summed_fap]
-            if np.any(coef):
-                flat[self._summed_rows] += (self._summed_matrix @ coef).astype(np.float32)
+            active = np.flatnonzero(coef)
+            if active.size:
+                rows, matrix = self._summed_for(active)
+                flat[rows] += (matrix @ coef[active]).astype(np.float32)
         for group in self._groups:
             out = self._apply(group, values, out)
         pose = np.eye(4)
