@@ -88,11 +88,11 @@ NECK_SLOPE = 0.0
 #: feature point's motion are dropped (0.2 %: 0.02 mm at 1024 IRISD).
 MIN_TABLE_MOTION = 0.002
 
-#: Share of the lip corner's motion each of its inner and outer FAPs carries
-#: (the corner moves by their mean; see build_rig).
+#: Share of the lip corner's stretch each of its inner and outer FAPs
+#: carries (the corner stretches by their mean; see build_rig).
 CORNER_SHARE = 0.5
 #: The FAPs whose tables carry CORNER_SHARE, and their partner.
-CORNER_PAIRS = {6: 53, 7: 54, 12: 59, 13: 60}
+CORNER_PAIRS = {6: 53, 7: 54}
 
 #: Closing hm08's lip slit (close_lips): how far each lip moves towards the
 #: other at its inner contour, and over what distance that fades out.
@@ -1010,12 +1010,14 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     # Stretching (6, 7, 53, 54): mouthStretch* outwards (the corner also goes
     # back and a little down, as the risorius pulls), back along the same
     # path inwards. hm08's inner and outer lip corners are one place (2.4 and
-    # 8.3 are 2 mm apart), so the corner moves by the *mean* of its inner and
-    # outer FAP, as FaceEditor averages the displacements a vertex gets
+    # 8.3 are 2 mm apart). The stretch tables carry half the corner's motion
+    # each (CORNER_SHARE), so the corner stretches by the *mean* of its inner
+    # and outer FAP, as FaceEditor averages the displacements a vertex gets
     # ("Realization and high level specification of facial expressions for
-    # embodied agents", section 4.3.1): each table carries half the shape
-    # (CORNER_SHARE). Profiles set both (joy: F6 and F53 at 160..240), and
-    # summing two whole tables would pull each corner twice as far.
+    # embodied agents", section 4.3.1): profiles set both (joy: F6 and F53 at
+    # 160..240), and two whole tables would pull each corner twice as far.
+    # The raise tables carry the whole lift each: profiles raise the corner
+    # with one of them (joy: F12, F13 only).
     mouth_parts = np.setdiff1d(np.arange(n_all), np.union1d(eyeballs, parts["upper_teeth"]))
     # (Both tables of a pair are scaled to the mean of the two points'
     # motion; the shapes move them up to 7 % apart, so each is within 4 %.)
@@ -1023,16 +1025,14 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         "l": [fp_index["2.4"], fp_index["8.3"]],
         "r": [fp_index["2.5"], fp_index["8.4"]],
     }
-    for fap, side, smile, frown in (
-        (12, "l", "mouthSmileLeft", "mouthFrownLeft"),
-        (13, "r", "mouthSmileRight", "mouthFrownRight"),
-        (59, "l", "mouthSmileLeft", "mouthFrownLeft"),
-        (60, "r", "mouthSmileRight", "mouthFrownRight"),
+    for fap, point, smile, frown in (
+        (12, "2.4", "mouthSmileLeft", "mouthFrownLeft"),
+        (13, "2.5", "mouthSmileRight", "mouthFrownRight"),
+        (59, "8.3", "mouthSmileLeft", "mouthFrownLeft"),
+        (60, "8.4", "mouthSmileRight", "mouthFrownRight"),
     ):
         deformers.append(
-            signed_table(
-                fap, shape(smile), shape(frown), corner_points[side], up, mouth_parts, CORNER_SHARE
-            )
+            signed_table(fap, shape(smile), shape(frown), fp_index[point], up, mouth_parts)
         )
     for fap, side, stretch, axis in (
         (6, "l", "mouthStretchLeft", left),
