@@ -97,7 +97,7 @@ def face_framing(face: Face) -> Any:
     return Framing.of_points(np.asarray(points, dtype=np.float64), margin=0.16)
 
 
-def build_sheet(face: Face, tile: int = 128) -> npt.NDArray[np.uint8]:
+def build_sheet(face: Face, tile: int = 256) -> npt.NDArray[np.uint8]:
     """The contact sheet as an RGB image: one row per FAP, in two columns,
     each row: label, neutral, +value, difference, -value, difference."""
     import numpy as np
@@ -196,5 +196,7 @@ def register(subparsers: Any) -> None:
         "--face",
         help="a face file (STEM, STEM.npz or STEM.xml); default: the built-in default face",
     )
-    parser.add_argument("--tile", type=int, default=128, help="tile size in pixels (128)")
+    parser.add_argument(
+        "--tile", type=int, default=256, help="tile size in pixels (256: lid and lip defects show)"
+    )
     parser.set_defaults(run=run)
