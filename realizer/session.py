@@ -169,6 +169,7 @@ class Session:
         self._finished: deque[_Record] = deque()
         self._feedback: list[Feedback] = []
         self._order = 0
+        self._audio_cut: float | None = None  # earliest audio cut not yet taken
         self._fap_limits: Any = _UNSET  # the registry's, looked up on the first frame
 
     # -- queries -----------------------------------------------------------
@@ -381,7 +382,10 @@ class Session:
             ]
         else:
             record.animations = []
-        # The audio stops now: what a viewer has not been sent is never sent.
+        # The audio stops now: what a viewer has not been sent is never sent,
+        # and what was sent ahead is cut (take_audio_cut).
+        if record.audio:
+            self._audio_cut = now if self._audio_cut is None else min(self._audio_cut, now)
         record.audio = [clip.cut(now) for clip in record.audio] if was_running else []
         status = "INTERRUPTED" if was_running else "REVOKED"
         self._emit(block_progress(block_id, "end", now, self.character_id, status))
@@ -435,6 +439,12 @@ class Session:
         from realizer.engines.speech.mixing import mix_audio
 
         return mix_audio(clips, start, end, sample_rate)
+
+    def take_audio_cut(self) -> float | None:
+        """The earliest instant (seconds) at which an interruption cut speech audio
+        since the last call, or None: audio sent ahead of it must not play."""
+        cut, self._audio_cut = self._audio_cut, None
+        return cut
 
     # -- internals ---------------------------------------------------------
 

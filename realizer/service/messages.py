@@ -98,6 +98,7 @@ class SubscribeRequest(TypedDict):
     vertices: NotRequired[VertexEncoding]
     coded: NotRequired[bool]
     arkit: NotRequired[bool]
+    audio: NotRequired[Literal["pcm16", "none"]]
 
 
 # -- viewer, server to client (msgpack) ---------------------------------------
@@ -158,6 +159,31 @@ class FrameMessage(TypedDict):
     coded: NotRequired[bytes]  # one MPEG-4 low-delay coded FAP frame
     codedRef: NotRequired[int]  # frame number it is predicted from (absent: intra)
     arkit: NotRequired[bytes]  # 52 uint8 ARKit weights (x / 255)
+
+
+class AudioMessage(TypedDict):
+    """Speech audio: ``count`` mono int16 little-endian ``samples`` at
+    ``rate`` Hz; the first plays at ``t`` seconds of the server clock
+    (protocols/viewer.md, "audio")."""
+
+    type: Literal["audio"]
+    v: int
+    character: str
+    t: float
+    rate: int
+    channels: int
+    format: Literal["pcm16"]
+    count: int
+    samples: bytes
+
+
+class AudioCutMessage(TypedDict):
+    """Audio already sent that plays at or after ``t`` must not play (an interruption)."""
+
+    type: Literal["audioCut"]
+    v: int
+    character: str
+    t: float
 
 
 # -- reading client messages ---------------------------------------------------
@@ -287,6 +313,12 @@ def read_subscribe_message(text: str) -> SubscribeRequest:
             request["vertices"] = vertices
         else:
             raise BadMessage("vertices must be none, float32 or int16")
+    if "audio" in data:
+        audio = data["audio"]
+        if audio == "pcm16" or audio == "none":
+            request["audio"] = audio
+        else:
+            raise BadMessage("audio must be pcm16 or none")
     return request
 
 

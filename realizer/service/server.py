@@ -50,6 +50,7 @@ from websockets.protocol import State
 
 from realizer import __version__
 from realizer.service import codec
+from realizer.service.audio import AUDIO_VALUES, AudioStream, backlog_limit
 from realizer.service.errors import BadMessage, CloseCode, ConfigError, PeerError
 from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
 from realizer.service.logs import log_block
@@ -223,6 +224,19 @@ class Viewer:
     idle: bool = False  # the pump waits for something to send
     closing: bool = False
     wants_model: bool = False  # send the deformation model after each mesh
+    audio: bool = True  # send the character's speech audio (audio=none opts out)
+    #: audio messages not yet sent, oldest first (bounded: the oldest go first)
+    audio_queue: deque[bytes] = field(default_factory=deque)
+    audio_dropped: int = 0
+
+    def offer_audio(self, message: bytes, backlog: int) -> None:
+        """Queue an audio chunk (never replaced like frames: audio must be whole);
+        beyond ``backlog`` queued chunks the oldest is dropped."""
+        if len(self.audio_queue) >= backlog:
+            self.audio_queue.popleft()
+            self.audio_dropped += 1
+        self.audio_queue.append(message)
+        self.wake.set()
 
     def offer(self, frame: bytes, write_limit: int = 0) -> None:
         """Send the newest frame, or put it in the mailbox (replacing an
@@ -240,6 +254,7 @@ class Viewer:
             self.idle
             and self.latest is None
             and not self.control
+            and not self.audio_queue
             and connection.protocol.state is State.OPEN
             and connection.transport.get_write_buffer_size() < write_limit
         ):
@@ -269,6 +284,7 @@ class RealizerService:
         self.submitters: set[Submitter] = set()
         self.viewers: dict[str, set[Viewer]] = {}
         self.encoders: dict[str, FrameEncoder] = {}
+        self.audio_streams: dict[str, AudioStream] = {}
         self._server: Server | None = None
         self._clock: asyncio.Task[None] | None = None
         self._tasks: set[asyncio.Task[Any]] = set()
@@ -419,11 +435,30 @@ class RealizerService:
             viewers = self.viewers.get(character_tick.character)
             if not viewers:
                 continue
+            self._send_audio(character_tick.character, character_tick.time, viewers)
             encoded = self._encoder(character_tick.character).encode(
                 number, character_tick.time, character_tick.frame, (v.options for v in viewers)
             )
             for viewer in viewers:
                 viewer.offer(encoded[viewer.options], WRITE_LIMIT)
+
+    def _send_audio(self, character: str, now: float, viewers: Iterable[Viewer]) -> None:
+        """The character's speech audio due at ``now`` to the viewers that want it."""
+        listeners = [v for v in viewers if v.audio]
+        if not listeners:
+            self.audio_streams.pop(character, None)  # a new listener starts at the clock
+            return
+        found = self.stage.characters.get(character)
+        if found is None:
+            return
+        stream = self.audio_streams.get(character)
+        if stream is None:
+            stream = self.audio_streams[character] = AudioStream(character)
+        messages = stream.messages(found.session, now)
+        backlog = backlog_limit(fps=self.config.fps)
+        for message in messages:
+            for viewer in listeners:
+                viewer.offer_audio(message, backlog)
 
     def _encoder(self, character_id: str) -> FrameEncoder:
         encoder = self.encoders.get(character_id)
@@ -715,7 +750,12 @@ class RealizerService:
         except PeerError as exc:
             await connection.close(exc.close_code, exc.message[:120])
             return
+        audio = query.get("audio", "pcm16").lower()
+        if audio not in AUDIO_VALUES:
+            await connection.close(CloseCode.POLICY_VIOLATION, "audio must be pcm16 or none")
+            return
         viewer = Viewer(connection, character, options)
+        viewer.audio = audio == "pcm16"
         viewer.wants_model = query.get("model", "false").lower() in ("1", "true", "yes")
         viewer.control.append(self._encoder(character).mesh_bytes)
         if viewer.wants_model:
@@ -763,6 +803,9 @@ class RealizerService:
             return
         self.viewers.get(viewer.character, set()).discard(viewer)
         viewer.character, viewer.options = character, options
+        if "audio" in request:
+            viewer.audio = request["audio"] == "pcm16"
+        viewer.audio_queue.clear()  # audio of the old subscription must not follow
         self.viewers.setdefault(character, set()).add(viewer)
         viewer.latest = None  # a frame of the old subscription must not follow the new mesh
         self._control(viewer, self._encoder(character).mesh_bytes)
@@ -786,6 +829,8 @@ class RealizerService:
             while True:
                 if viewer.control:
                     data = viewer.control.popleft()
+                elif viewer.audio_queue:
+                    data = viewer.audio_queue.popleft()
                 elif viewer.latest is not None:
                     data, viewer.latest = viewer.latest, None
                 else:
