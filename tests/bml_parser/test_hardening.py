@@ -8,7 +8,10 @@ to minutes for the same input), so they hold on a loaded machine; the
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -283,3 +286,20 @@ def test_sync_references_in_one_relation_are_limited() -> None:
         parse_bml(
             bml(f"<constraint><synchronize>{syncs}</synchronize></constraint>"), limits=limits
         )
+
+
+@pytest.mark.parametrize("start", ["1e308", "bml:start+1e308", "1" * 400])
+def test_realizer_schedule_reports_huge_times_without_a_traceback(
+    start: str, tmp_path: Path
+) -> None:
+    path = tmp_path / "huge.xml"
+    path.write_text(bml(f'<faceLexeme id="a" lexeme="RAISE_BROWS" start="{start}"/>'))
+    done = subprocess.run(
+        [sys.executable, "-m", "realizer", "schedule", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr
+    assert "limit" in done.stderr
