@@ -27,7 +27,7 @@ import enum
 import math
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from realizer.bml_parser import BmlError, Limits, ParseResult, WarningType, parse_bml
 from realizer.engines import EngineRegistry
@@ -40,6 +40,12 @@ from realizer.feedback import (
     warning,
 )
 from realizer.scheduler.plan import SchedulingFailed, TimedPlan, schedule_block
+
+if TYPE_CHECKING:  # the types only; the modules load when a face or speech is used
+    from realizer.engines.speech.engine import AudioClip
+    from realizer.face.animation import Animation
+    from realizer.face.idle import IdleMotion
+    from realizer.face.model import Face
 
 _UNSET: Any = object()
 _MIXER: tuple[Any, Any] | None = None
@@ -121,9 +127,9 @@ class _Record:
     lifecycle: BlockLifecycle
     # still to report, in the order of :data:`_Event`'s rank
     events: deque[_Event]
-    animations: list[Any] = field(default_factory=list)
-    #: speech audio (AudioClip) on the session clock
-    audio: list[Any] = field(default_factory=list)
+    animations: list[Animation] = field(default_factory=list)
+    #: speech audio on the session clock
+    audio: list[AudioClip] = field(default_factory=list)
 
 
 @dataclass(frozen=True, slots=True)
@@ -145,14 +151,15 @@ class Session:
     def __init__(
         self,
         character_id: str = "",
-        face: Any = None,
+        face: Face | None = None,
         *,
         registry: EngineRegistry | None = None,
         limits: SessionLimits | None = None,
-        idle: Any = None,
+        idle: IdleMotion | None = None,
     ) -> None:
         self.character_id = character_id
-        self.face = face
+        #: the character's face (None: the default face)
+        self.face: Face | None = face
         # Idle motion (realizer.face.idle.IdleMotion, or None: off): fills the
         # FAPs no animation sets, so explicit behaviours win per FAP.
         self.idle = idle
@@ -272,8 +279,8 @@ class Session:
                 self.character_id,
             )
             events = self._events(plan)
-            animations: list[Any] = []
-            audio: list[Any] = []
+            animations: list[Animation] = []
+            audio: list[AudioClip] = []
             for scheduled in plan.behaviours:
                 if scheduled.id in plan.unrealized:
                     continue

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from realizer.service.server import FaceAssets
-from realizer.service.stage import SessionLike
+from realizer.session import Session
 
 
 def load_face(path: str | Path | None = None) -> Any:
@@ -53,7 +53,7 @@ def session_factory(face: Any, *, idle: bool = False, seed: int = 0) -> Any:
     ``seed`` and the character's id, so a run is reproducible."""
     from realizer.session import Session
 
-    def make(character_id: str) -> SessionLike:
+    def make(character_id: str) -> Session:
         motion = None
         if idle:
             import zlib
@@ -62,7 +62,7 @@ def session_factory(face: Any, *, idle: bool = False, seed: int = 0) -> Any:
 
             own = zlib.crc32(character_id.encode("utf-8"))
             motion = IdleMotion(IdleSettings(seed=seed * 2**32 + own))
-        session: SessionLike = Session(character_id, face, idle=motion)
+        session: Session = Session(character_id, face, idle=motion)
         return session
 
     return make

@@ -49,6 +49,7 @@ from websockets.http11 import Request, Response
 from websockets.protocol import State
 
 from realizer import __version__
+from realizer.face.model import Face
 from realizer.service import codec
 from realizer.service.audio import AUDIO_VALUES, AudioStream, backlog_limit
 from realizer.service.errors import BadMessage, CloseCode, ConfigError, PeerError
@@ -68,7 +69,6 @@ from realizer.service.messages import (
 from realizer.service.stage import (
     BlockEvent,
     Deformer,
-    FaceLike,
     FrameEncoder,
     Outgoing,
     Stage,
@@ -131,7 +131,7 @@ def is_loopback(host: str) -> bool:
 class FaceAssets:
     """The face every character shows: the model, its deformer and colours."""
 
-    face: FaceLike
+    face: Face
     deform: Deformer
     colours: npt.NDArray[np.uint8] | None = None
     avatar: bytes | None = None  # a glTF binary the browser viewer drives (--avatar)

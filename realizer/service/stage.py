@@ -47,7 +47,7 @@ import re
 import threading
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -55,10 +55,14 @@ import numpy.typing as npt
 from realizer.bml_parser import BmlError, Limits, parse_bml
 from realizer.errors import RealizerError
 from realizer.face.fapcoding import DEFAULT_FAP_QUANT, FapStreamEncoder, is_intra
+from realizer.face.frame import FapFrame
+from realizer.face.model import Face
+from realizer.feedback import Feedback
 from realizer.service import codec
 from realizer.service.errors import LimitExceeded, PeerError
 from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
 from realizer.service.messages import BlockState, DeltaPayload, ViewOptions, warning_feedback_xml
+from realizer.session import Session
 
 logger = logging.getLogger("realizer.service")
 
@@ -66,43 +70,10 @@ logger = logging.getLogger("realizer.service")
 #: joins decodes from the next one, at most this long after it joined.
 CODED_INTRA_SECONDS = 1.0
 
-# -- what the stage needs from the session and the face (docs/interfaces.md) --
+# -- the session and the face, as the stage uses them (docs/interfaces.md) ----
 
-
-class FeedbackLike(Protocol):
-    @property
-    def kind(self) -> str: ...
-    @property
-    def block_id(self) -> str: ...
-    @property
-    def time(self) -> float: ...
-    @property
-    def xml(self) -> str: ...
-
-
-class FrameLike(Protocol):
-    @property
-    def values(self) -> npt.NDArray[np.float64]: ...  # (68,) FAPU-scaled units
-    @property
-    def mask(self) -> npt.NDArray[np.bool_]: ...  # (68,)
-
-
-class SessionLike(Protocol):
-    def receive_bml(self, text: Any, now: float, *, strict: bool = False) -> Any: ...
-    def interrupt(self, block_id: str, now: float) -> Any: ...
-    def tick(self, now: float) -> Any: ...
-    def take_feedback(self) -> list[Any]: ...
-    def frame(self, now: float) -> Any: ...
-
-
-class FaceLike(Protocol):
-    @property
-    def vertices(self) -> npt.NDArray[Any]: ...  # (n, 3) neutral pose, metres
-    @property
-    def faces(self) -> npt.NDArray[Any]: ...  # (m, 3) triangles
-
-
-SessionFactory = Callable[[str], SessionLike]
+#: Makes the session of a character id (realizer.service.assets.session_factory).
+SessionFactory = Callable[[str], Session]
 Deformer = Callable[[Any, npt.NDArray[np.float64]], npt.NDArray[Any]]
 
 
@@ -167,7 +138,7 @@ class Character:
     """
 
     id: str
-    session: SessionLike
+    session: Session
     open_blocks: dict[str, float] = field(default_factory=dict)
     deadlines: dict[str, float] = field(default_factory=dict)
     interrupting: set[str] = field(default_factory=set)
@@ -212,7 +183,7 @@ def _guess_block_id(text: str) -> str:
     return ""
 
 
-def _is_block_end(feedback: FeedbackLike) -> bool:
+def _is_block_end(feedback: Feedback) -> bool:
     """True for the ``blockProgress`` that says a block ended (id ``b:end``)."""
     if feedback.kind != "blockProgress":
         return False
@@ -510,7 +481,7 @@ class Stage:
     # -- helpers ----------------------------------------------------------------
 
     @staticmethod
-    def _take(found: Character) -> list[FeedbackLike]:
+    def _take(found: Character) -> list[Feedback]:
         try:
             return list(found.session.take_feedback())
         except Exception:
@@ -520,7 +491,7 @@ class Stage:
     def _route(
         self,
         found: Character,
-        produced: Iterable[FeedbackLike],
+        produced: Iterable[Feedback],
         *,
         admit: str | None = None,
         now: float = 0.0,
@@ -598,15 +569,15 @@ class Stage:
         return self._route(found, [fb for fb in self._take(found) if fb.block_id != block_id])
 
     def _bounded(
-        self, character: str, block_id: str, now: float, produced: list[FeedbackLike]
-    ) -> list[FeedbackLike]:
+        self, character: str, block_id: str, now: float, produced: list[Feedback]
+    ) -> list[Feedback]:
         """At most ``limits.warnings_per_block`` warnings about ``block_id``;
         the rest are counted in one last warning."""
         limit = self.limits.warnings_per_block
         count = sum(1 for fb in produced if fb.kind == "warning" and fb.block_id == block_id)
         if count <= limit:
             return produced
-        kept: list[FeedbackLike] = []
+        kept: list[Feedback] = []
         seen = 0
         for fb in produced:
             if fb.kind == "warning" and fb.block_id == block_id:
@@ -622,7 +593,7 @@ class Stage:
             f"{more} more warnings about block {block_id!r} are not listed "
             f"(limit of {limit} warnings per block)",
         )
-        summary = WireFeedback(character, "warning", block_id, now, xml)
+        summary = Feedback("warning", block_id, now, xml)
         last_warning = max(
             i for i, fb in enumerate(kept) if fb.kind == "warning" and fb.block_id == block_id
         )
@@ -662,7 +633,7 @@ class FrameEncoder:
     def __init__(
         self,
         character_id: str,
-        face: FaceLike,
+        face: Face,
         deform: Deformer,
         fps: float,
         colours: npt.NDArray[np.uint8] | None = None,
@@ -698,7 +669,7 @@ class FrameEncoder:
         return self._model_bytes
 
     def encode(
-        self, number: int, time: float, frame: FrameLike, wanted: Iterable[ViewOptions]
+        self, number: int, time: float, frame: FapFrame, wanted: Iterable[ViewOptions]
     ) -> dict[ViewOptions, bytes]:
         """One frame's bytes for each distinct :class:`ViewOptions` wanted."""
         wanted = set(wanted)

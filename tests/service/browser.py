@@ -13,7 +13,8 @@ from typing import Any
 
 from realizer.service.limits import ServiceLimits
 from realizer.service.server import FaceAssets, RealizerService, ServiceConfig
-from realizer.service.stage import SessionLike, Stage
+from realizer.service.stage import Stage
+from realizer.session import Session
 
 CHROMIUM = os.environ.get("REALIZER_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = [
@@ -41,7 +42,7 @@ def chromium_missing() -> str | None:
 
 @contextmanager
 def service_in_thread(
-    make_session: Callable[[str], SessionLike], assets: FaceAssets, **config: Any
+    make_session: Callable[[str], Session], assets: FaceAssets, **config: Any
 ) -> Iterator[RealizerService]:
     """The real service on a free loopback port, its event loop in a thread,
     so that Playwright's blocking API can run in the test's thread."""

@@ -11,12 +11,13 @@ from typing import Any
 
 from realizer.service.limits import ServiceLimits
 from realizer.service.server import FaceAssets, RealizerService, ServiceConfig
-from realizer.service.stage import SessionLike, Stage
+from realizer.service.stage import Stage
+from realizer.session import Session
 
 
 @asynccontextmanager
 async def running_service(
-    make_session: Callable[[str], SessionLike],
+    make_session: Callable[[str], Session],
     assets: FaceAssets,
     *,
     limits: ServiceLimits | None = None,
