@@ -26,10 +26,10 @@ are deterministic (no two neighbouring parts can match the same
 character). Whatever multiplies work has a named limit in :class:`Limits`:
 behaviours per block, nesting depth, attributes per element, sync
 references per speech text or constraint relation, strokes of a
-repetition, the magnitude of numbers (times and offsets: one hour), and
-warnings per block (repeats collapse into one counted warning). Columns of
-warnings are found with a per-line cursor, so all lookups of one parse are
-linear too. A block over a limit is refused with a
+repetition, the magnitude of numbers (times and offsets: one hour), the
+text of a speech, and warnings per block (repeats collapse into one counted
+warning). Columns of warnings are found with a per-line cursor, so all
+lookups of one parse are linear too. A block over a limit is refused with a
 :class:`~realizer.bml_parser.errors.BmlSecurityError`; a behaviour whose
 attribute is out of range is not created, with a warning.
 """
@@ -100,7 +100,8 @@ class Limits:
     :data:`~realizer.bml_parser.syncref.MAX_SECONDS`). ``max_warnings``:
     distinct warnings reported for one block; warnings of one type about one
     target are one warning that counts them, and what is over this limit is
-    counted in a last warning.
+    counted in a last warning. ``max_speech_chars``: characters of text in
+    one speech behaviour (what the speech synthesiser is given).
     """
 
     max_bytes: int = 4 * 1024 * 1024
@@ -111,6 +112,7 @@ class Limits:
     max_repetition: int = MAX_ITERATION
     max_number: float = 1e6
     max_warnings: int = 64
+    max_speech_chars: int = 10_000
 
 
 DEFAULT_LIMITS = Limits()
@@ -823,6 +825,14 @@ class _Reader:
                 merged[-1] += run
             elif run != "":
                 merged.append(run)
+        spoken = sum(len(run) for run in merged if isinstance(run, str))
+        if spoken > self.limits.max_speech_chars:
+            raise self.error(
+                BmlSecurityError,
+                f"speech {behaviour_id!r} has {spoken} characters of text; the limit is "
+                f"{self.limits.max_speech_chars}",
+                el,
+            )
         return _make(SpeechText, fields, tuple(merged))
 
     def constraint(self, el: Any, nsmap: dict[str | None, str], required: bool) -> Constraint:

@@ -303,3 +303,10 @@ def test_realizer_schedule_reports_huge_times_without_a_traceback(
     assert done.returncode == 2
     assert "Traceback" not in done.stderr
     assert "limit" in done.stderr
+
+
+def test_speech_text_is_limited_in_length() -> None:
+    limits = Limits(max_speech_chars=20)
+    parse_bml(bml('<speech id="s"><text>twenty characters!!</text></speech>'), limits=limits)
+    with pytest.raises(BmlSecurityError, match="the limit is 20"):
+        parse_bml(bml('<speech id="s"><text>twenty-one characters</text></speech>'), limits=limits)
