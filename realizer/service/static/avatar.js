@@ -27,8 +27,6 @@ export async function loadAvatar(scene, state, THREE) {
   const rest = {};
   for (const [k, b] of Object.entries(bones)) if (b) rest[k] = b.quaternion.clone();
   const missing = ARKIT_NAMES.filter((n) => !targets.has(n));
-  const box = new THREE.Box3().setFromObject(root);
-  root.position.x += 0.3 - box.min.x;  // beside the default face
   scene.add(root);
   const avatar = {
     root, missing, bones: Object.fromEntries(Object.entries(bones).map(([k, b]) => [k, b ? b.name : null])),
@@ -60,5 +58,6 @@ export async function loadAvatar(scene, state, THREE) {
     document.getElementById("feedback").appendChild(li);
   }
   state.avatar = avatar;
+  if (state.layout) state.layout();  // beside the characters
   return avatar;
 }

@@ -85,14 +85,22 @@ function dataTexture({ data, width, height }) {
   return t;
 }
 
+// Characters side by side, and the avatar (if any) in the last place.
 function layout() {
   let i = 0;
-  const count = state.characters.size;
+  const count = state.characters.size + (state.avatar ? 1 : 0);
   for (const c of state.characters.values()) {
     if (c.group) c.group.position.x = (i - (count - 1) / 2) * SPACING_M;
     i++;
   }
+  if (state.avatar) state.avatar.root.position.x = (i - (count - 1) / 2) * SPACING_M;
+  state.dirty = true;
 }
+state.layout = () => {
+  layout();
+  const first = state.characters.values().next().value;
+  if (first && first.neutral) frameCamera(first.neutral);
+};
 
 // Build (or rebuild) a character's mesh from its mesh message, and its GPU deformation when
 // the model message has come. Without WebGL2 float textures it deforms in JavaScript.
@@ -152,7 +160,9 @@ function frameCamera(neutral) {
   const centre = box.getCenter(new THREE.Vector3());
   const size = box.getSize(new THREE.Vector3()).length();
   controls.target.copy(centre);
-  camera.position.set(centre.x, centre.y, centre.z + size * 1.55 * Math.max(1, state.characters.size * 0.7));
+  const places = state.characters.size + (state.avatar ? 1 : 0);
+  controls.target.x = 0;
+  camera.position.set(0, centre.y, centre.z + size * 1.55 * Math.max(1, places * 0.7));
   camera.near = size / 100; camera.far = size * 50;
   camera.updateProjectionMatrix();
   controls.update();
