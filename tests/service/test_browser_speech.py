@@ -101,6 +101,7 @@ def test_the_viewer_plays_a_speech_in_sync_and_the_mouth_moves() -> None:
                   return out;
                 }"""
             )
+            played = page.evaluate("window.realizerViewer.audio.played")
         finally:
             browser.close()
     differences = [np.abs(c - neutral).sum(axis=2) for c in changes]
@@ -110,11 +111,13 @@ def test_the_viewer_plays_a_speech_in_sync_and_the_mouth_moves() -> None:
     assert max(at_mouth) > 2 * max(at_eye) + 0.5
     assert len(changes) >= 2
     assert len({round(m, 1) for m in at_mouth}) >= 2, at_mouth  # it moved, not one fixed pose
-    assert len(offsets) > 5
-    median = float(np.median(offsets))
+    assert played > 3
+    median = float(np.median(offsets)) if offsets else float("nan")
     if os.getloadavg()[0] > (os.cpu_count() or 1):
+        # a page that cannot keep up draws late and drops late audio chunks
         pytest.skip(
             f"machine loaded (load {os.getloadavg()[0]:.1f}): sync not judged "
-            f"(audio {median:.1f} ms from the picture)"
+            f"({len(offsets)} samples, median audio {median:.1f} ms from the picture)"
         )
+    assert len(offsets) > 5
     assert abs(median) < SYNC_MS, f"audio {median:.1f} ms from the picture"

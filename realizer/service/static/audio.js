@@ -1,9 +1,10 @@
 // Speech audio in the browser viewer: the viewer protocol's `audio` messages (PCM16 chunks
 // stamped on the server clock, protocols/viewer.md) played through Web Audio. The server
-// clock is mapped once onto the AudioContext's clock (from the frames' `t` and their arrival
-// times, `serverNow`), each chunk starts at its `t` on that mapping, and a chunk that joins
-// the previous one sample for sample starts exactly where it ended, so speech has no clicks
-// and keeps the frames' clock. `audioCut` stops what was scheduled at or after its `t`.
+// clock (the viewer's estimate from the frames' `t` and their arrival times, `serverNow`) is
+// mapped onto the AudioContext's clock, each chunk starts at its `t` on that mapping, and a
+// chunk that joins the previous one sample for sample starts exactly where it ended, so
+// speech has no clicks and keeps the frames' clock. `audioCut` stops what was scheduled at
+// or after its `t`.
 
 export class AudioPlayer {
   constructor() {
@@ -29,7 +30,7 @@ export class AudioPlayer {
     if (!this.context || !pcm || !m.rate || this.context.state !== "running") return;
     const samples = new Int16Array(pcm.slice().buffer);
     const rate = m.rate, first = Math.round(m.t * rate);
-    if (this.offset === null) this.offset = this.context.currentTime - serverNow;
+    this.offset = this.context.currentTime - serverNow;  // the clocks' mapping now
     const continued = this.next.get(character);
     let at = continued && continued.sample === first ? continued.at : m.t + this.offset - this.latency();
     let skip = 0;

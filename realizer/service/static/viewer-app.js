@@ -209,9 +209,19 @@ state.project = function (x, y, z) {
 
 // -- viewer connections ---------------------------------------------------------------------
 
+// The server clock, seen from here: performance.now() minus the smallest delay of recent
+// frames (arrival minus `t`). A frame that waited in a busy page's queue only adds delay, so
+// the minimum is the network's own; the audio is scheduled on this clock.
+const CLOCK_WINDOW = 300;  // frames
+const delays = [];
+function noteFrameArrival(t) {
+  delays.push(performance.now() / 1000 - t);
+  if (delays.length > CLOCK_WINDOW) delays.shift();
+  state.clockDelay = Math.min(...delays);
+}
 function serverNow() {
-  const f = state.lastFrame;
-  return f ? f.t + (performance.now() - f.at) / 1000 : 0;
+  if (state.clockDelay === undefined) return 0;
+  return performance.now() / 1000 - state.clockDelay;
 }
 
 function onViewerMessage(c, m) {
@@ -236,6 +246,7 @@ function onViewerMessage(c, m) {
 }
 
 function onFrame(c, m) {
+  noteFrameArrival(m.t);
   let faps = null, count = 0;
   if (m.coded) {
     faps = c.decoder.decode(m.n, m.coded, m.codedRef ?? null);  // null until the next intra frame
