@@ -68,6 +68,7 @@ from realizer.service.messages import (
 )
 from realizer.service.stage import (
     BlockEvent,
+    CharacterTick,
     Deformer,
     FrameEncoder,
     Outgoing,
@@ -273,7 +274,16 @@ class Viewer:
 
 class RealizerService:
     """The server. ``await start()``, then ``await shutdown()``; see
-    :func:`run_service` for the process around it."""
+    :func:`run_service` for the process around it.
+
+    The cluster's worker and gateway (:mod:`realizer.service.cluster`)
+    subclass it and override the hooks marked "hook" below: where a
+    request goes (:meth:`_on_submit`), where a character is made
+    (:meth:`_admit_viewer`), where a frame goes (:meth:`_deliver_frame`).
+    """
+
+    #: Whether this process computes frames (a cluster gateway does not).
+    runs_clock: ClassVar[bool] = True
 
     def __init__(self, config: ServiceConfig, stage: Stage, assets: FaceAssets) -> None:
         self.config = config
@@ -339,7 +349,8 @@ class RealizerService:
         self._start = loop.time()
         # asyncio's loop clock is time.monotonic(); record frame 0 on it.
         self.stats.started = self._start
-        self._clock = loop.create_task(self._run_clock(), name="realizer-clock")
+        if self.runs_clock:
+            self._clock = loop.create_task(self._run_clock(), name="realizer-clock")
 
     async def shutdown(self, reason: str = "server shutting down") -> None:
         """The shutdown sequence, each waiting step bounded by the timeout."""
@@ -432,15 +443,20 @@ class RealizerService:
         for character_tick in self.stage.tick(now):
             if character_tick.messages:
                 self._dispatch(character_tick.messages)
-            viewers = self.viewers.get(character_tick.character)
-            if not viewers:
-                continue
-            self._send_audio(character_tick.character, character_tick.time, viewers)
-            encoded = self._encoder(character_tick.character).encode(
-                number, character_tick.time, character_tick.frame, (v.options for v in viewers)
-            )
-            for viewer in viewers:
-                viewer.offer(encoded[viewer.options], WRITE_LIMIT)
+            self._deliver_frame(number, character_tick)
+
+    def _deliver_frame(self, number: int, character_tick: CharacterTick) -> None:
+        """Hook: encode one character's frame once per format and offer it,
+        with its audio, to its viewers (a cluster worker publishes it instead)."""
+        viewers = self.viewers.get(character_tick.character)
+        if not viewers:
+            return
+        self._send_audio(character_tick.character, character_tick.time, viewers)
+        encoded = self._encoder(character_tick.character).encode(
+            number, character_tick.time, character_tick.frame, (v.options for v in viewers)
+        )
+        for viewer in viewers:
+            viewer.offer(encoded[viewer.options], WRITE_LIMIT)
 
     def _send_audio(self, character: str, now: float, viewers: Iterable[Viewer]) -> None:
         """The character's speech audio due at ``now`` to the viewers that want it."""
@@ -746,7 +762,7 @@ class RealizerService:
                 )
             except BadMessage as exc:  # a bad query parameter is a policy matter: 1008
                 raise PeerError(exc.message) from None
-            self._admit_viewer(character)
+            await self._admit_viewer(character)
         except PeerError as exc:
             await connection.close(exc.close_code, exc.message[:120])
             return
@@ -757,12 +773,9 @@ class RealizerService:
         viewer = Viewer(connection, character, options)
         viewer.audio = audio == "pcm16"
         viewer.wants_model = query.get("model", "false").lower() in ("1", "true", "yes")
-        viewer.control.append(self._encoder(character).mesh_bytes)
-        if viewer.wants_model:
-            viewer.control.append(self._encoder(character).model_bytes)
-        if viewer.options.coded:
-            self._encoder(character).want_intra()
+        viewer.control.extend(await self._subscription_start(character, viewer))
         self.viewers.setdefault(character, set()).add(viewer)
+        self._viewers_changed(character)
         pump = self._spawn(self._pump_viewer(viewer))
         try:
             async for message in connection:
@@ -771,12 +784,13 @@ class RealizerService:
                         CloseCode.UNSUPPORTED_DATA, "the viewer endpoint takes JSON text messages"
                     )
                     break
-                self._on_subscribe(viewer, message)
+                await self._on_subscribe(viewer, message)
         finally:
             self.viewers.get(viewer.character, set()).discard(viewer)
+            self._viewers_changed(viewer.character)
             pump.cancel()
 
-    def _admit_viewer(self, character: str) -> None:
+    async def _admit_viewer(self, character: str) -> None:
         """Raises :class:`PeerError` when ``character`` may not get one more viewer."""
         total = sum(len(v) for v in self.viewers.values())
         if total >= self.limits.viewers:
@@ -785,7 +799,23 @@ class RealizerService:
             raise _limit(f"limit of {self.limits.viewers_per_character} viewers per character")
         self.stage.character(character, for_viewer=True)
 
-    def _on_subscribe(self, viewer: Viewer, text: str) -> None:
+    async def _subscription_start(self, character: str, viewer: Viewer) -> list[bytes]:
+        """Hook: the messages that start a viewer's subscription to
+        ``character``: the mesh, then the deformation model if the viewer
+        asked for it; a coded-FAP viewer makes the next frame an intra frame."""
+        encoder = self._encoder(character)
+        if viewer.options.coded:
+            encoder.want_intra()
+        return (
+            [encoder.mesh_bytes, encoder.model_bytes]
+            if viewer.wants_model
+            else [encoder.mesh_bytes]
+        )
+
+    def _viewers_changed(self, character: str) -> None:
+        """Hook: a viewer of ``character`` came, left or changed format."""
+
+    async def _on_subscribe(self, viewer: Viewer, text: str) -> None:
         try:
             request = read_subscribe_message(text)
             character = request.get("character", viewer.character)
@@ -796,23 +826,23 @@ class RealizerService:
                 arkit=request.get("arkit", viewer.options.arkit),
             )
             if character != viewer.character:
-                self._admit_viewer(character)
+                await self._admit_viewer(character)
         except PeerError as exc:
             error = {"type": "error", "v": PROTOCOL_VERSION, "reason": exc.message}
             self._control(viewer, codec.pack(error))
             return
         self.viewers.get(viewer.character, set()).discard(viewer)
+        self._viewers_changed(viewer.character)
         viewer.character, viewer.options = character, options
         if "audio" in request:
             viewer.audio = request["audio"] == "pcm16"
         viewer.audio_queue.clear()  # audio of the old subscription must not follow
         self.viewers.setdefault(character, set()).add(viewer)
+        self._viewers_changed(character)
         viewer.latest = None  # a frame of the old subscription must not follow the new mesh
-        self._control(viewer, self._encoder(character).mesh_bytes)
-        if viewer.wants_model:
-            viewer.control.append(self._encoder(character).model_bytes)
-        if viewer.options.coded:
-            self._encoder(character).want_intra()
+        mesh, *model = await self._subscription_start(character, viewer)
+        self._control(viewer, mesh)
+        viewer.control.extend(model)
 
     def _control(self, viewer: Viewer, data: bytes) -> None:
         if len(viewer.control) >= self.limits.subscribe_backlog:
