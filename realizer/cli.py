@@ -30,6 +30,8 @@ COMMANDS: tuple[str, ...] = (
     "plot",
     "render",
     "serve",
+    "worker",
+    "gateway",
     "send",
     "record",
     "face",

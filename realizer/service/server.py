@@ -1021,7 +1021,14 @@ async def run_service(
     ready: Callable[[RealizerService], None] | None = None,
 ) -> int:
     """Serve until SIGINT or SIGTERM, then shut down cleanly; returns 0."""
-    service = RealizerService(config, stage, assets)
+    return await run_until_stopped(RealizerService(config, stage, assets), ready=ready)
+
+
+async def run_until_stopped(
+    service: RealizerService, *, ready: Callable[[RealizerService], None] | None = None
+) -> int:
+    """Start ``service`` (or a cluster worker or gateway), serve until SIGINT
+    or SIGTERM, then run its shutdown sequence; returns 0."""
     await service.start()
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()

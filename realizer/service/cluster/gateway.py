@@ -1,0 +1,385 @@
+"""``realizer gateway``: the service's endpoints, no characters (protocols/cluster.md).
+
+A gateway is a :class:`~realizer.service.server.RealizerService` without a
+clock whose stage stays empty: it serves the same ``/bml``, ``/view``,
+``/``, ``/health`` and ``/version``, with the same tokens, limits, close
+codes and messages, so a client cannot tell it from ``realizer serve``.
+What ``realizer serve`` does on its stage, a gateway asks of the
+character's owner over NATS:
+
+* a submitter's BML goes to the character it names (the same precedence
+  as ``realizer serve``: the envelope's ``character``, the block's
+  ``characterId``, the connection's character) as a request on
+  ``realizer.v1.req.<c>``; where no worker answers there, on the claim
+  subject, where one worker takes the character; while a character is
+  between owners (a worker died or is leaving) the gateway asks again until
+  ``owner_wait`` has passed, then refuses the block with a warning;
+* feedback comes from ``realizer.v1.fb.*`` and goes to the submitters that
+  follow the character, and to the one that sent the request;
+* a viewer's frames come from ``realizer.v1.frame.<c>.*``, subscribed while
+  the character has viewers here, and are offered to each viewer's
+  one-frame mailbox as they arrive, never decoded or retimed; the gateway
+  tells the workers which formats its viewers want (``realizer.v1.want``);
+* when a character's owner changes (a lease watched in the bucket), its
+  viewers get the mesh message again: a new subscription, whose frames
+  carry the new owner's clock.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from typing import Any, cast
+
+import nats.errors
+from lxml import etree
+from nats.aio.client import Client
+from nats.aio.msg import Msg
+from nats.aio.subscription import Subscription
+
+from realizer.service.cluster.bus import ClusterConfig, connect, default_node_id, lease_bucket
+from realizer.service.cluster.leases import LeaseTable
+from realizer.service.cluster.protocol import (
+    CLUSTER_VERSION,
+    FEEDBACK_WILDCARD,
+    PREFIX,
+    SUBJECT_CLAIM,
+    SUBJECT_WANT,
+    ClusterMessageError,
+    OwnerReply,
+    OwnerRequest,
+    format_key,
+    frame_wildcard,
+    pack_want,
+    request_subject,
+    unpack_feedback,
+    untoken,
+)
+from realizer.service.errors import LimitExceeded, PeerError
+from realizer.service.limits import valid_character_id
+from realizer.service.messages import SubmitterRequest, ViewOptions, warning_feedback_xml
+from realizer.service.server import (
+    WRITE_LIMIT,
+    FaceAssets,
+    RealizerService,
+    ServiceConfig,
+    Submitter,
+    Viewer,
+)
+from realizer.service.stage import BlockEvent, Outgoing, SessionLike, Stage, WireFeedback
+
+logger = logging.getLogger("realizer.cluster")
+
+#: The part of a BML document read to find its ``characterId`` (bytes).
+ROOT_SCAN_BYTES = 4096
+
+
+class NoOwner(PeerError):
+    """No worker took the character within the gateway's wait."""
+
+    warning_type = "CANNOT_CREATE_BEHAVIOR"
+
+
+def root_attribute(text: str, name: str) -> str | None:
+    """An attribute of a BML document's root element (``characterId``,
+    ``id``), or None.
+
+    Reads only the root's start tag, with lxml's incremental parser fed at
+    most :data:`ROOT_SCAN_BYTES` bytes (linear, no regular expression); a
+    document it cannot read goes to the connection's character, whose owner
+    then answers the parse error as ``realizer serve`` would.
+    """
+    parser = etree.XMLPullParser(events=("start",), resolve_entities=False, no_network=True)
+    # A syntax error after the root's start tag (the rest is the owner's to
+    # judge) still leaves the start event to read.
+    with contextlib.suppress(etree.XMLSyntaxError):
+        parser.feed(text[:ROOT_SCAN_BYTES].encode("utf-8", "replace"))
+    for _, element in parser.read_events():
+        if isinstance(element, etree._Element):
+            value = element.get(name)
+            return value if isinstance(value, str) else None
+        return None
+    return None
+
+
+def _no_session(character_id: str) -> SessionLike:
+    raise RuntimeError("a gateway holds no character")
+
+
+class ClusterGateway(RealizerService):
+    """A gateway; ``await start()``, then ``await shutdown()``."""
+
+    runs_clock = False
+
+    def __init__(
+        self,
+        config: ServiceConfig,
+        cluster: ClusterConfig,
+        default_character: str = "default",
+    ) -> None:
+        # The stage only answers what needs no character (the refusal of an
+        # interrupt for a character nobody made); the face is the workers'.
+        stage = Stage(_no_session, config.limits, default_character)
+        super().__init__(config, stage, cast(FaceAssets, None))
+        self.cluster = cluster
+        self.gateway_id = cluster.node_id or default_node_id("gateway")
+        self.table = LeaseTable(cluster.lease_ttl)
+        self.nats: Client | None = None
+        self.meshes: dict[str, bytes] = {}
+        self.by_format: dict[str, dict[str, set[Viewer]]] = {}
+        self.frames_received = 0
+        self._frame_subscriptions: dict[str, Subscription] = {}
+        self._want_changed = asyncio.Event()
+        self._subscribing = asyncio.Lock()
+
+    # -- life cycle ---------------------------------------------------------------
+
+    async def start(self) -> None:
+        self.nats = await connect(self.cluster, self.gateway_id)
+        kv = await lease_bucket(self.nats)
+        watcher = await kv.watchall()
+        await self.nats.subscribe(FEEDBACK_WILDCARD, cb=self._on_feedback)
+        await self.nats.flush()
+        await super().start()
+        self._spawn(self._watch_leases(watcher))
+        self._spawn(self._announce())
+
+    async def shutdown(self, reason: str = "server shutting down") -> None:
+        await super().shutdown(reason)
+        if self.nats is not None:
+            with contextlib.suppress(Exception):
+                await self.nats.close()
+
+    def health(self) -> dict[str, Any]:
+        report = super().health()
+        report.update(
+            role="gateway",
+            gateway=self.gateway_id,
+            cluster=CLUSTER_VERSION,
+            characters=len(self.table.leases),
+            characterIds=sorted(self.table.leases),
+            workers=sorted(self.table.owners()),
+            framesReceived=self.frames_received,
+            nats=bool(self.nats is not None and self.nats.is_connected),
+        )
+        report.pop("frame", None)
+        return report
+
+    # -- asking owners ------------------------------------------------------------
+
+    def _submitter_name(self, submitter: Submitter) -> str:
+        return f"{self.gateway_id}/{id(submitter)}"
+
+    async def _ask(self, request: OwnerRequest) -> OwnerReply:
+        """The owner's reply, finding or making an owner; raises
+        :class:`NoOwner` after ``owner_wait`` seconds without one."""
+        assert self.nats is not None
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self.cluster.owner_wait
+        payload = request.pack()
+        timeout = self.cluster.request_timeout
+        pause = 0.02
+        last = "no worker answered"
+        while True:
+            for subject in (request_subject(request.character), SUBJECT_CLAIM):
+                try:
+                    msg = await self.nats.request(subject, payload, timeout=timeout)
+                except nats.errors.NoRespondersError:
+                    continue  # no owner: claim; no worker at all: wait
+                except nats.errors.TimeoutError:
+                    last = "a worker did not answer in time"
+                    break
+                try:
+                    reply = OwnerReply.unpack(msg.data)
+                except ClusterMessageError as exc:
+                    logger.warning("unreadable reply from a worker: %s", exc)
+                    break
+                if reply.status in ("ok", "none", "error"):
+                    return reply
+                last = reply.reason or reply.status
+                break  # retry / full: ask again after a pause
+            if loop.time() + pause > deadline:
+                raise NoOwner(
+                    f"no realizer took character {request.character!r} within "
+                    f"{self.cluster.owner_wait:g} s ({last})"
+                )
+            await asyncio.sleep(pause)
+            pause = min(pause * 2, 0.2)
+
+    async def _perform(self, submitter: Submitter, request: SubmitterRequest, now: float) -> None:
+        if request["type"] == "bml":
+            text = request["bml"]
+            character = (
+                request.get("character")
+                or root_attribute(text, "characterId")
+                or submitter.default_character
+            )
+            if not valid_character_id(character):
+                # What the stage answers; it needs no session for this.
+                self._dispatch(self.stage.submit_bml(text, now, character=character).messages,
+                               also=submitter)  # fmt: skip
+                return
+            owner_request = OwnerRequest(
+                "bml", character, self._submitter_name(submitter), bml=text
+            )
+        else:
+            character = request.get("character", submitter.default_character)
+            if not valid_character_id(character):
+                self._dispatch(
+                    self.stage.interrupt(character, request["block"], now), also=submitter
+                )
+                return
+            owner_request = OwnerRequest(
+                "interrupt", character, self._submitter_name(submitter), block=request["block"]
+            )
+        try:
+            reply = await self._ask(owner_request)
+        except NoOwner as exc:
+            self._refuse(submitter, owner_request, exc.message)
+            return
+        if reply.status == "none":
+            self._dispatch(
+                self.stage.interrupt(character, owner_request.block, now), also=submitter
+            )
+        elif reply.status == "error":
+            self._refuse(submitter, owner_request, reply.reason)
+
+    def _refuse(self, submitter: Submitter, request: OwnerRequest, text: str) -> None:
+        now = self.now()
+        block = (
+            request.block
+            if request.op == "interrupt"
+            else (root_attribute(request.bml, "id") or "")
+        )
+        xml = warning_feedback_xml(block, request.character, NoOwner.warning_type, text)
+        messages: list[Outgoing] = [WireFeedback(request.character, "warning", block, now, xml)]
+        if request.op == "bml":
+            messages.append(BlockEvent(request.character, block, "rejected", now))
+        self._dispatch(messages, also=submitter)
+
+    # -- feedback ---------------------------------------------------------------------
+
+    async def _on_feedback(self, msg: Msg) -> None:
+        try:
+            envelope = unpack_feedback(msg.data)
+        except ClusterMessageError as exc:
+            logger.warning("ignored a feedback message: %s", exc)
+            return
+        also: Submitter | None = None
+        if envelope.reply_to.startswith(self.gateway_id + "/"):
+            for submitter in self.submitters:
+                if self._submitter_name(submitter) == envelope.reply_to:
+                    also = submitter
+                    if envelope.follow:
+                        submitter.characters.add(envelope.message.character)
+                    break
+        self._dispatch([envelope.message], also=also)
+
+    # -- viewers --------------------------------------------------------------------------
+
+    async def _admit_viewer(self, character: str) -> None:
+        total = sum(len(v) for v in self.viewers.values())
+        if total >= self.limits.viewers:
+            raise LimitExceeded(f"limit of {self.limits.viewers} viewers reached")
+        if len(self.viewers.get(character, ())) >= self.limits.viewers_per_character:
+            raise LimitExceeded(
+                f"limit of {self.limits.viewers_per_character} viewers per character"
+            )
+        if not valid_character_id(character):
+            raise PeerError(f"invalid character id {character[:80]!r}")
+        reply = await self._ask(OwnerRequest("view", character))
+        if reply.status != "ok" or not reply.mesh:
+            raise LimitExceeded(reply.reason or f"character {character!r} cannot be viewed")
+        for unwatched in [c for c in self.meshes if not self.viewers.get(c)]:
+            del self.meshes[unwatched]  # bounded by the characters with viewers
+        self.meshes[character] = reply.mesh
+
+    def _mesh(self, character: str) -> bytes:
+        return self.meshes[character]
+
+    def _viewers_changed(self, character: str) -> None:
+        viewers = self.viewers.get(character, set())
+        groups: dict[str, set[Viewer]] = {}
+        for viewer in viewers:
+            groups.setdefault(format_key(viewer.options), set()).add(viewer)
+        if groups:
+            self.by_format[character] = groups
+        else:
+            self.by_format.pop(character, None)
+            self.viewers.pop(character, None)
+        self._spawn(self._subscribe_frames(character))
+        self._want_changed.set()
+
+    async def _subscribe_frames(self, character: str) -> None:
+        assert self.nats is not None
+        async with self._subscribing:  # one change at a time: never two subscriptions
+            wanted = character in self.by_format
+            subscription = self._frame_subscriptions.get(character)
+            if wanted and subscription is None:
+                self._frame_subscriptions[character] = await self.nats.subscribe(
+                    frame_wildcard(character), cb=self._on_frame
+                )
+            elif not wanted and subscription is not None:
+                del self._frame_subscriptions[character]
+                await subscription.unsubscribe()
+
+    async def _on_frame(self, msg: Msg) -> None:
+        # realizer.v1.frame.<token>.<format>
+        parts = msg.subject.split(".")
+        if len(parts) != 5:
+            return
+        viewers = self.by_format.get(untoken(parts[3]), {}).get(parts[4])
+        if not viewers:
+            return
+        self.frames_received += 1
+        data = msg.data
+        for viewer in viewers:
+            viewer.offer(data, WRITE_LIMIT)
+
+    def _wants(self) -> dict[str, set[ViewOptions]]:
+        return {
+            character: {viewer.options for viewer in viewers}
+            for character, viewers in self.viewers.items()
+            if viewers
+        }
+
+    async def _announce(self) -> None:
+        """Tell the workers what formats this gateway's viewers want: at
+        once on a change, and every ``want_interval`` seconds anyway (a
+        worker forgets a gateway it has not heard for 3.5 intervals)."""
+        assert self.nats is not None
+        while True:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._want_changed.wait(), self.cluster.want_interval)
+            self._want_changed.clear()
+            with contextlib.suppress(Exception):
+                await self.nats.publish(SUBJECT_WANT, pack_want(self.gateway_id, self._wants()))
+
+    async def _watch_leases(self, watcher: Any) -> None:
+        async for entry in watcher:
+            if entry is None:
+                continue
+            character = untoken(entry.key)
+            before = self.table.owner(character)
+            deleted = entry.operation in ("DEL", "PURGE")
+            self.table.observe(
+                character, entry.revision, None if deleted else entry.value, time.monotonic()
+            )
+            after = self.table.owner(character)
+            if before is not None and after is not None and after != before:
+                self._restart_viewers(character)
+
+    def _restart_viewers(self, character: str) -> None:
+        """The character moved to another worker: its viewers start again
+        from the mesh message (its frames now carry the new owner's clock)."""
+        mesh = self.meshes.get(character)
+        if mesh is None:
+            return
+        for viewer in self.viewers.get(character, set()):
+            viewer.latest = None
+            self._control(viewer, mesh)
+
+
+__all__ = ["PREFIX", "ClusterGateway", "root_attribute"]

@@ -1,0 +1,526 @@
+"""``realizer worker``: runs characters for the cluster (protocols/cluster.md).
+
+A worker is a :class:`~realizer.service.server.RealizerService` with its
+frame clock, its :class:`~realizer.service.stage.Stage` and sessions, but
+no submitters or viewers of its own: its port serves only ``/health`` and
+``/version``. Instead it
+
+* answers requests for the characters it owns (``realizer.v1.req.<c>``),
+  and claims unowned characters offered on ``realizer.v1.claim`` (a queue
+  group: one worker answers) by creating their lease;
+* publishes every feedback message on ``realizer.v1.fb.<c>`` and every
+  frame, encoded once per viewer format that some gateway wants, on
+  ``realizer.v1.frame.<c>.<format>`` (frames carry this worker's clock);
+* renews its leases by compare-and-set, watches everyone's leases, and
+  takes over a character whose lease it has seen unrenewed for the lease
+  time (realizer.service.cluster.leases), ending the blocks the lost owner
+  had open with a ``warningFeedback`` and an interrupted block end;
+* on SIGTERM hands its characters over: it takes no new character, lets
+  running blocks finish (up to ``drain_timeout``) while new BML for them
+  waits at the gateway, and deletes each lease as soon as the character is
+  idle, so the next request or a viewer makes another worker take it.
+
+Every publish goes through one outbox in program order, so a request's
+feedback always precedes its reply and a tick's feedback precedes the next.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import http
+import logging
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+from urllib.parse import urlsplit
+
+from nats.aio.client import Client
+from nats.aio.msg import Msg
+from nats.aio.subscription import Subscription
+from nats.js.errors import KeyWrongLastSequenceError
+from nats.js.kv import KeyValue
+from websockets.asyncio.server import ServerConnection
+from websockets.http11 import Request, Response
+
+from realizer.feedback import block_progress
+from realizer.service.cluster.bus import ClusterConfig, connect, default_node_id, lease_bucket
+from realizer.service.cluster.leases import LeaseTable, ObservedLease
+from realizer.service.cluster.protocol import (
+    CLUSTER_LIMITS,
+    CLUSTER_VERSION,
+    SUBJECT_CLAIM,
+    SUBJECT_WANT,
+    WORKER_QUEUE,
+    ClusterMessageError,
+    LeaseValue,
+    OwnerReply,
+    OwnerRequest,
+    feedback_subject,
+    frame_subject,
+    pack_feedback,
+    request_subject,
+    token,
+    unpack_want,
+    untoken,
+)
+from realizer.service.messages import ViewOptions, warning_feedback_xml
+from realizer.service.server import (
+    FaceAssets,
+    RealizerService,
+    ServiceConfig,
+    Submitter,
+    _response,
+)
+from realizer.service.stage import BlockEvent, CharacterTick, Outgoing, Stage, WireFeedback
+
+logger = logging.getLogger("realizer.cluster")
+
+#: Messages the outbox may hold while NATS is slow or away; over it the
+#: oldest are dropped (and counted): frames are superseded anyway, and an
+#: owner that cannot publish for long loses its leases.
+OUTBOX_LIMIT = 65536
+#: Gateways whose interest a worker keeps.
+MAX_GATEWAYS = 256
+
+
+@dataclass(eq=False, slots=True)
+class Owned:
+    """A character this worker owns: the lease revision it last wrote and
+    when (monotonic seconds), and its request subscription."""
+
+    revision: int
+    renewed: float
+    subscription: Subscription | None = None
+    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+    dirty: bool = False
+
+
+class ClusterWorker(RealizerService):
+    """A worker; ``await start()``, then ``await shutdown()`` (graceful)."""
+
+    def __init__(
+        self, config: ServiceConfig, stage: Stage, assets: FaceAssets, cluster: ClusterConfig
+    ) -> None:
+        super().__init__(config, stage, assets)
+        self.cluster = cluster
+        self.worker_id = cluster.node_id or default_node_id("worker")
+        self.table = LeaseTable(cluster.lease_ttl)
+        self.owned: dict[str, Owned] = {}
+        self.wants: dict[str, tuple[float, dict[str, frozenset[ViewOptions]]]] = {}
+        self.wanted: dict[str, frozenset[ViewOptions]] = {}
+        self.draining = False
+        self.takeovers = 0
+        self.lost_blocks = 0
+        self.dropped = 0
+        self.nats: Client | None = None
+        self.kv: KeyValue | None = None
+        self._outbox: deque[tuple[str, bytes]] = deque()
+        self._outbox_wake = asyncio.Event()
+        self._claims: Subscription | None = None
+
+    # -- life cycle ---------------------------------------------------------------
+
+    async def start(self) -> None:
+        await super().start()
+        self.nats = await connect(self.cluster, self.worker_id)
+        self.kv = await lease_bucket(self.nats)
+        watcher = await self.kv.watchall()
+        self._spawn(self._publish_outbox())
+        self._spawn(self._watch_leases(watcher))
+        await self.nats.subscribe(SUBJECT_WANT, cb=self._on_want)
+        self._claims = await self.nats.subscribe(
+            SUBJECT_CLAIM, queue=WORKER_QUEUE, cb=self._on_claim
+        )
+        await self.nats.flush()
+        self._spawn(self._keep_leases())
+
+    async def shutdown(self, reason: str = "worker shutting down") -> None:
+        """Hand over, then stop: no new characters; each owned character is
+        released as soon as it has no open block; after ``drain_timeout``
+        the rest are interrupted (their submitters get the end feedback) and
+        released; then the service's own shutdown sequence."""
+        if self._stopping or self.nats is None:
+            await super().shutdown(reason)
+            return
+        self.draining = True
+        loop = asyncio.get_running_loop()
+        with contextlib.suppress(Exception):
+            if self._claims is not None:
+                await self._claims.unsubscribe()
+        deadline = loop.time() + self.cluster.drain_timeout
+        while self.owned and loop.time() < deadline:
+            for character in list(self.owned):
+                found = self.stage.characters.get(character)
+                if found is None or not found.open_blocks:
+                    await self._release(character)
+            await asyncio.sleep(0.02)
+        await super().shutdown(reason)  # interrupts what is left, publishes its feedback
+        for character in list(self.owned):
+            await self._release(character)
+        # The outbox task was cancelled with the others: flush by hand.
+        with contextlib.suppress(Exception):
+            while self._outbox:
+                subject, data = self._outbox.popleft()
+                await self.nats.publish(subject, data)
+            await self.nats.flush(timeout=max(1, int(self.config.shutdown_timeout)))
+        with contextlib.suppress(Exception):
+            await self.nats.close()
+
+    # -- what this process serves over HTTP ----------------------------------------
+
+    def _process_request(self, connection: ServerConnection, request: Request) -> Response | None:
+        if urlsplit(request.path).path in ("/health", "/version"):
+            return super()._process_request(connection, request)
+        return _response(
+            http.HTTPStatus.NOT_FOUND,
+            b"this is a realizer cluster worker: it serves /health and /version; "
+            b"submitters and viewers connect to a gateway\n",
+        )
+
+    def health(self) -> dict[str, Any]:
+        report = super().health()
+        report.update(
+            role="worker",
+            worker=self.worker_id,
+            cluster=CLUSTER_VERSION,
+            draining=self.draining,
+            owned=sorted(self.owned),
+            takeovers=self.takeovers,
+            lostBlocks=self.lost_blocks,
+            droppedMessages=self.dropped,
+            nats=bool(self.nats is not None and self.nats.is_connected),
+        )
+        return report
+
+    # -- publishing -------------------------------------------------------------------
+
+    def _send(self, subject: str, data: bytes) -> None:
+        if len(self._outbox) >= OUTBOX_LIMIT:
+            self._outbox.popleft()
+            self.dropped += 1
+        self._outbox.append((subject, data))
+        self._outbox_wake.set()
+
+    async def _publish_outbox(self) -> None:
+        assert self.nats is not None
+        while True:
+            while not self._outbox:
+                self._outbox_wake.clear()
+                await self._outbox_wake.wait()
+            subject, data = self._outbox.popleft()
+            try:
+                await self.nats.publish(subject, data)
+            except Exception as exc:  # disconnected, buffer full: the message is lost
+                self.dropped += 1
+                logger.debug("publish on %s failed: %s", subject, exc)
+
+    def _dispatch(self, messages: Any, also: Submitter | None = None) -> None:
+        """The clock's and the shutdown's feedback goes to the gateways."""
+        self._publish_feedback(messages)
+
+    def _publish_feedback(self, messages: Any, reply_to: str = "", follow: bool = False) -> None:
+        for message in messages:
+            self._send(
+                feedback_subject(message.character), pack_feedback(message, reply_to, follow)
+            )
+            if isinstance(message, BlockEvent) and message.state in ("done", "interrupted"):
+                owned = self.owned.get(message.character)
+                if owned is not None:
+                    owned.dirty = True  # the lease's open blocks changed
+
+    def _deliver_frame(self, number: int, character_tick: CharacterTick) -> None:
+        character = character_tick.character
+        formats = self.wanted.get(character)
+        owned = self.owned.get(character)
+        if not formats or owned is None or not self._fresh(owned):
+            return
+        encoded = self._encoder(character).encode(
+            number, character_tick.time, character_tick.frame, formats
+        )
+        for options, data in encoded.items():
+            self._send(frame_subject(character, options), data)
+
+    # -- requests -----------------------------------------------------------------------
+
+    def _reply(self, msg: Msg, reply: OwnerReply) -> None:
+        if msg.reply:
+            self._send(msg.reply, reply.pack())
+
+    async def _on_claim(self, msg: Msg) -> None:
+        try:
+            request = OwnerRequest.unpack(msg.data)
+        except ClusterMessageError as exc:
+            self._reply(msg, OwnerReply("error", self.worker_id, str(exc)))
+            return
+        character = request.character
+        if character in self.owned:
+            await self._carry_out(request, msg)
+            return
+        if self.draining:
+            self._reply(msg, OwnerReply("retry", self.worker_id, "worker leaving"))
+            return
+        lease = self.table.leases.get(character)
+        if request.op == "interrupt" and lease is None:
+            self._reply(msg, OwnerReply("none", self.worker_id, f"no character {character!r}"))
+            return
+        if not self._has_room():
+            self._reply(msg, OwnerReply("full", self.worker_id, "worker full"))
+            return
+        if lease is None:
+            won = await self._create(character)
+        elif time.monotonic() - lease.seen > self.table.ttl:
+            won = await self._take_over(lease)
+        else:
+            won = False
+        if won:
+            await self._carry_out(request, msg)
+        else:
+            self._reply(msg, OwnerReply("retry", self.worker_id, "owned elsewhere"))
+
+    async def _on_request(self, msg: Msg) -> None:
+        try:
+            request = OwnerRequest.unpack(msg.data)
+            if request_subject(request.character) != msg.subject:
+                raise ClusterMessageError("request for another character")
+        except ClusterMessageError as exc:
+            self._reply(msg, OwnerReply("error", self.worker_id, str(exc)))
+            return
+        await self._carry_out(request, msg)
+
+    async def _carry_out(self, request: OwnerRequest, msg: Msg) -> None:
+        """Carry out a request for a character this worker owns, on the
+        stage, exactly as ``realizer serve`` does for its own submitters."""
+        character = request.character
+        owned = self.owned.get(character)
+        leaving = self.draining and request.op != "interrupt"
+        if owned is None or leaving or not self._fresh(owned):
+            self._reply(msg, OwnerReply("retry", self.worker_id, "not the owner now"))
+            return
+        now = self.now()
+        if request.op == "bml":
+            result = self.stage.submit_bml(request.bml, now, character=character)
+            self._publish_feedback(
+                result.messages, request.reply_to, character in self.stage.characters
+            )
+            if result.accepted:
+                # Record the open block before answering, so a taker-over
+                # knows to end it if this worker dies now.
+                owned.dirty = True
+                await self._write_lease(character)
+        elif request.op == "interrupt":
+            messages = self.stage.interrupt(character, request.block, now)
+            self._publish_feedback(messages, request.reply_to)
+        else:
+            mesh = self._encoder(character).mesh_bytes
+            self._reply(msg, OwnerReply("ok", self.worker_id, mesh=mesh))
+            return
+        self._reply(msg, OwnerReply("ok", self.worker_id))
+
+    # -- viewers' interest ----------------------------------------------------------------
+
+    async def _on_want(self, msg: Msg) -> None:
+        try:
+            gateway, wants = unpack_want(msg.data)
+        except ClusterMessageError as exc:
+            logger.warning("ignored a want message: %s", exc)
+            return
+        if gateway not in self.wants and len(self.wants) >= MAX_GATEWAYS:
+            return
+        self.wants[gateway] = (time.monotonic(), wants)
+        self._recompute_wanted()
+
+    def _recompute_wanted(self) -> None:
+        wanted: dict[str, set[ViewOptions]] = {}
+        for _, wants in self.wants.values():
+            for character, formats in wants.items():
+                wanted.setdefault(character, set()).update(formats)
+        self.wanted = {character: frozenset(formats) for character, formats in wanted.items()}
+
+    # -- leases ---------------------------------------------------------------------------
+
+    def _has_room(self) -> bool:
+        return len(self.stage.characters) < self.limits.characters
+
+    def _fresh(self, owned: Owned) -> bool:
+        """Whether this worker may still act as owner (renewed within ttl/2)."""
+        return time.monotonic() - owned.renewed < self.table.ttl / 2
+
+    def _lease_value(self, character: str) -> bytes:
+        found = self.stage.characters.get(character)
+        blocks = tuple(found.open_blocks)[: CLUSTER_LIMITS.lease_blocks] if found else ()
+        return LeaseValue(self.worker_id, blocks).pack()
+
+    async def _create(self, character: str) -> bool:
+        assert self.kv is not None
+        try:
+            revision = await self.kv.create(token(character), LeaseValue(self.worker_id).pack())
+        except KeyWrongLastSequenceError:
+            return False
+        return await self._own(character, revision)
+
+    async def _take_over(self, lease: ObservedLease) -> bool:
+        """Compare-and-set on the revision seen unrenewed: one worker wins."""
+        assert self.kv is not None
+        character = lease.character
+        try:
+            revision = await self.kv.update(
+                token(character), LeaseValue(self.worker_id).pack(), last=lease.revision
+            )
+        except KeyWrongLastSequenceError:
+            return False
+        if not await self._own(character, revision):
+            return False
+        self.takeovers += 1
+        now = self.now()
+        lost: list[Outgoing] = []
+        for block in lease.value.blocks:
+            text = (
+                f"block {block!r} was lost: the realizer that ran it "
+                f"({lease.value.owner or 'unknown'}) stopped; character {character!r} "
+                f"is now run by {self.worker_id}"
+            )
+            end = block_progress(block, "end", now, character, status="INTERRUPTED")
+            lost += [
+                WireFeedback(
+                    character,
+                    "warning",
+                    block,
+                    now,
+                    warning_feedback_xml(block, character, "CANNOT_CREATE_BEHAVIOR", text),
+                ),
+                WireFeedback(character, end.kind, block, now, end.xml),
+                BlockEvent(character, block, "interrupted", now),
+            ]
+        self.lost_blocks += len(lease.value.blocks)
+        self._publish_feedback(lost)
+        logger.warning(
+            "took over character %r from %s (%d blocks lost)",
+            character,
+            lease.value.owner,
+            len(lease.value.blocks),
+        )
+        return True
+
+    async def _own(self, character: str, revision: int) -> bool:
+        assert self.nats is not None and self.kv is not None
+        try:
+            self.stage.character(character)
+        except Exception as exc:  # a limit reached meanwhile: give the lease back
+            logger.warning("cannot run character %r: %s", character, exc)
+            with contextlib.suppress(Exception):
+                await self.kv.delete(token(character), last=revision)
+            return False
+        owned = Owned(revision, time.monotonic())
+        self.owned[character] = owned
+        owned.subscription = await self.nats.subscribe(
+            request_subject(character), cb=self._on_request
+        )
+        await self.nats.flush()
+        return True
+
+    async def _write_lease(self, character: str) -> bool:
+        """Renew (compare-and-set) the lease of an owned character."""
+        assert self.kv is not None
+        owned = self.owned.get(character)
+        if owned is None:
+            return False
+        async with owned.lock:
+            if self.owned.get(character) is not owned:
+                return False
+            owned.dirty = False
+            try:
+                revision = await self.kv.update(
+                    token(character), self._lease_value(character), last=owned.revision
+                )
+            except KeyWrongLastSequenceError:
+                self._lose(character, "its lease was taken over")
+                return False
+            except Exception as exc:  # NATS away or slow: try again next round
+                logger.debug("lease renewal of %r failed: %s", character, exc)
+                owned.dirty = True
+                return False
+            owned.revision = revision
+            owned.renewed = time.monotonic()
+            return True
+
+    def _lose(self, character: str, why: str) -> None:
+        """Stop running ``character`` at once (another worker owns it)."""
+        owned = self.owned.pop(character, None)
+        if owned is None:
+            return
+        logger.warning("lost character %r: %s", character, why)
+        if owned.subscription is not None:
+            self._spawn(owned.subscription.unsubscribe())
+        self._drop(character)
+
+    async def _release(self, character: str) -> None:
+        """Give a character up on purpose: delete its lease."""
+        owned = self.owned.pop(character, None)
+        if owned is None:
+            return
+        assert self.kv is not None
+        with contextlib.suppress(Exception):
+            if owned.subscription is not None:
+                await owned.subscription.unsubscribe()
+            await self.kv.delete(token(character), last=owned.revision)
+        self._drop(character)
+
+    def _drop(self, character: str) -> None:
+        # The stage has no removal of its own: a character it no longer
+        # runs is simply forgotten, with its encoder.
+        self.stage.characters.pop(character, None)
+        self.encoders.pop(character, None)
+
+    async def _watch_leases(self, watcher: Any) -> None:
+        async for entry in watcher:
+            if entry is None:
+                continue  # the end of the initial values
+            character = untoken(entry.key)
+            deleted = entry.operation in ("DEL", "PURGE")
+            self.table.observe(
+                character, entry.revision, None if deleted else entry.value, time.monotonic()
+            )
+            owner = self.table.owner(character)
+            if character in self.owned and owner is not None and owner != self.worker_id:
+                self._lose(character, f"taken over by {owner}")
+
+    async def _keep_leases(self) -> None:
+        """Renew, take over the expired, pick up what viewers want."""
+        ttl = self.table.ttl
+        while True:
+            await asyncio.sleep(ttl / 16)
+            try:
+                await self._lease_round(ttl)
+            except Exception:
+                logger.exception("lease round failed")
+
+    async def _lease_round(self, ttl: float) -> None:
+        now = time.monotonic()
+        for character, owned in list(self.owned.items()):
+            if owned.dirty or now - owned.renewed >= ttl / 4:
+                await self._write_lease(character)
+        stale = [
+            g
+            for g, (seen, _) in self.wants.items()
+            if now - seen > 3.5 * self.cluster.want_interval
+        ]
+        for gateway in stale:
+            del self.wants[gateway]
+        if stale:
+            self._recompute_wanted()
+        if self.draining:
+            return
+        for lease in self.table.expired(time.monotonic()):
+            if lease.character in self.owned or lease.value.owner == self.worker_id:
+                continue
+            if not self._has_room():
+                break
+            await self._take_over(lease)
+        for character in list(self.wanted):
+            if character in self.owned or character in self.table.leases:
+                continue
+            if not self._has_room():
+                break
+            await self._create(character)

