@@ -27,6 +27,8 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "render": ("OpenGL", "PIL", "tqdm"),
     "plots": ("matplotlib",),
     "bench": ("trimesh", "psutil"),
+    "cluster": ("nats",),
+    "stomp": ("stomp",),
 }
 
 

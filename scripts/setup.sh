@@ -12,7 +12,8 @@ cd "$(dirname "$0")/.."
 # Debian packages: OSMesa and EGL for offscreen OpenGL rendering, ffmpeg for
 # video output, eSpeak NG (library and voices) for speech, Chromium and its
 # driver for the browser viewer's end-to-end test, Node and its ws package for
-# the JavaScript client's tests.
+# the JavaScript client's tests, nats-server for the cluster's tests (realizer
+# worker/gateway), ActiveMQ (Java) for the STOMP bridge's test.
 APT_PACKAGES=(
     libosmesa6 libgl1 libegl1 libgl1-mesa-dri libglu1-mesa
     ffmpeg
@@ -20,6 +21,8 @@ APT_PACKAGES=(
     chromium chromium-driver
     npm
     nodejs node-ws
+    nats-server
+    activemq
 )
 
 if [ "${REALIZER_SKIP_APT:-0}" != "1" ] && command -v apt-get >/dev/null 2>&1; then
