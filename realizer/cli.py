@@ -53,6 +53,8 @@ SUMMARIES: dict[str, str] = {
     "plot": "draw a scheduled BML block as a Gantt chart",
     "render": "render a BML block offscreen to a video or PNG files",
     "serve": "run the real-time BML service (WebSocket + browser viewer)",
+    "worker": "run characters for a cluster of workers and gateways over NATS",
+    "gateway": "serve the realizer's endpoints for a cluster of workers over NATS",
     "send": "send a BML file to a running service and print its feedback",
     "record": "record a character's viewer stream to .fap, .csv or .jsonl",
     "face": "render one FAP pose of a face to a PNG",

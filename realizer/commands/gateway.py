@@ -59,22 +59,18 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import asyncio
     import logging
 
     from realizer.commands.serve import _limits
-    from realizer.service.server import RealizerService, ServiceConfig, run_until_stopped
+    from realizer.service.server import RealizerService, ServiceConfig, run_until_stopped_blocking
 
     logging.basicConfig(level=logging.WARNING, format="realizer: %(message)s")
-    try:
-        from realizer.service.cluster.bus import ClusterConfig
-        from realizer.service.cluster.gateway import ClusterGateway
-    except ImportError as exc:
-        print(
-            f"realizer gateway: {exc}; install the cluster extra: pip install 'realizer[cluster]'",
-            file=sys.stderr,
-        )
-        return 2
+    from realizer.extras import require
+
+    require("cluster", "realizer gateway")
+    from realizer.service.cluster.bus import ClusterConfig
+    from realizer.service.cluster.gateway import ClusterGateway
+
     try:
         config = ServiceConfig(
             host=args.host,
@@ -103,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        return asyncio.run(run_until_stopped(gateway, ready=ready))
+        return run_until_stopped_blocking(gateway, ready=ready)
     except Exception as exc:  # the port is in use, NATS cannot be reached
         print(f"realizer gateway: {exc or type(exc).__name__}", file=sys.stderr)
         return 2

@@ -76,19 +76,16 @@ def run(args: argparse.Namespace) -> int:
     from realizer.commands.serve import _limits
     from realizer.errors import RealizerError
     from realizer.service.assets import face_assets, load_face, session_factory
-    from realizer.service.server import RealizerService, ServiceConfig, run_until_stopped
+    from realizer.service.server import RealizerService, ServiceConfig, run_until_stopped_blocking
     from realizer.service.stage import Stage
 
     logging.basicConfig(level=logging.WARNING, format="realizer: %(message)s")
-    try:
-        from realizer.service.cluster.bus import ClusterConfig
-        from realizer.service.cluster.worker import ClusterWorker
-    except ImportError as exc:
-        print(
-            f"realizer worker: {exc}; install the cluster extra: pip install 'realizer[cluster]'",
-            file=sys.stderr,
-        )
-        return 2
+    from realizer.extras import require
+
+    require("cluster", "realizer worker")
+    from realizer.service.cluster.bus import ClusterConfig
+    from realizer.service.cluster.worker import ClusterWorker
+
     try:
         limits = _limits(args.limit)
         config = ServiceConfig(host=args.host, port=args.port, fps=args.fps, limits=limits)
@@ -112,10 +109,8 @@ def run(args: argparse.Namespace) -> int:
             flush=True,
         )
 
-    import asyncio
-
     try:
-        return asyncio.run(run_until_stopped(worker, ready=ready))
+        return run_until_stopped_blocking(worker, ready=ready)
     except Exception as exc:  # the port is in use, NATS cannot be reached
         print(f"realizer worker: {exc or type(exc).__name__}", file=sys.stderr)
         return 2

@@ -1055,3 +1055,11 @@ def serve_until_stopped(
     """Run the service in a new event loop until SIGINT or SIGTERM; returns
     the exit status (0). The blocking entry point of ``realizer serve``."""
     return asyncio.run(run_service(config, stage, assets, ready=ready))
+
+
+def run_until_stopped_blocking(
+    service: RealizerService, *, ready: Callable[[RealizerService], None] | None = None
+) -> int:
+    """:func:`run_until_stopped` in a new event loop (the blocking entry
+    point of ``realizer worker`` and ``realizer gateway``)."""
+    return asyncio.run(run_until_stopped(service, ready=ready))

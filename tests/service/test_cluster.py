@@ -1,4 +1,4 @@
-"""The cluster (issue 15): workers and gateways over a real NATS server.
+"""The cluster: workers and gateways over a real NATS server.
 
 The first part checks the message layouts and the lease rule without a
 broker. The rest starts a real ``nats-server`` with JetStream on a free
@@ -69,6 +69,13 @@ def test_a_request_round_trips_and_another_version_is_refused() -> None:
         OwnerRequest.unpack(other)
 
 
+def test_a_reply_carries_its_mesh_bytes() -> None:
+    reply = OwnerReply("ok", "w1", mesh=b"\x81\xa4type")
+    assert OwnerReply.unpack(reply.pack()) == reply
+    with pytest.raises(ClusterMessageError, match="status"):
+        OwnerReply.unpack(msgpack.packb({"v": 1, "status": "maybe"}))
+
+
 def test_requests_over_their_limits_or_for_bad_characters_are_refused() -> None:
     with pytest.raises(ClusterMessageError, match="over the limit"):
         OwnerRequest.unpack(b"\x00" * 300_000)
@@ -133,6 +140,21 @@ def test_the_gateway_reads_only_the_root_start_tag_for_routing() -> None:
     assert root_attribute(text, "id") == "b1"
     assert root_attribute("not xml at all", "id") is None
     assert root_attribute(f'<bml xmlns="{BML_NS}" id="x">', "characterId") is None
+
+
+def test_only_the_cluster_package_imports_the_nats_client() -> None:
+    from tests.service.test_architecture import PACKAGE, imported_roots
+
+    importing = {
+        str(path.relative_to(PACKAGE))
+        for path in PACKAGE.rglob("*.py")
+        if "nats" in imported_roots(path)
+    }
+    assert importing == {
+        "service/cluster/bus.py",
+        "service/cluster/worker.py",
+        "service/cluster/gateway.py",
+    }
 
 
 # -- a real cluster ----------------------------------------------------------------------

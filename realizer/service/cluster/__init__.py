@@ -5,7 +5,7 @@ many viewers, ``realizer worker --nats URL`` runs characters (the same
 sans-I/O :class:`~realizer.service.stage.Stage` and sessions, and the same
 clock as ``realizer serve``) and ``realizer gateway --nats URL`` serves the
 same endpoints as ``realizer serve`` without holding any character
-(ARCHITECTURE.md decision 10). NATS does the distribution: core NATS for
+(docs/architecture.md). NATS does the distribution: core NATS for
 requests, feedback and frames (at most once: the next frame supersedes a
 lost one), a JetStream key-value bucket for the leases that give each
 character one owner.

@@ -128,6 +128,7 @@ class ClusterGateway(RealizerService):
         self.table = LeaseTable(cluster.lease_ttl)
         self.nats: Client | None = None
         self.meshes: dict[str, bytes] = {}
+        self.models: dict[str, bytes] = {}
         self.by_format: dict[str, dict[str, set[Viewer]]] = {}
         self.frames_received = 0
         self._frame_subscriptions: dict[str, Subscription] = {}
@@ -294,10 +295,17 @@ class ClusterGateway(RealizerService):
             raise LimitExceeded(reply.reason or f"character {character!r} cannot be viewed")
         for unwatched in [c for c in self.meshes if not self.viewers.get(c)]:
             del self.meshes[unwatched]  # bounded by the characters with viewers
+            self.models.pop(unwatched, None)
         self.meshes[character] = reply.mesh
 
-    def _mesh(self, character: str) -> bytes:
-        return self.meshes[character]
+    async def _subscription_start(self, character: str, model: bool) -> list[bytes]:
+        mesh = self.meshes[character]
+        if not model:
+            return [mesh]
+        if character not in self.models:
+            reply = await self._ask(OwnerRequest("view", character, model=True))
+            self.models[character] = reply.model
+        return [mesh, self.models[character]]
 
     def _viewers_changed(self, character: str) -> None:
         viewers = self.viewers.get(character, set())
@@ -377,9 +385,12 @@ class ClusterGateway(RealizerService):
         mesh = self.meshes.get(character)
         if mesh is None:
             return
+        model = self.models.get(character)
         for viewer in self.viewers.get(character, set()):
             viewer.latest = None
             self._control(viewer, mesh)
+            if viewer.wants_model and model:
+                viewer.control.append(model)
 
 
 __all__ = ["PREFIX", "ClusterGateway", "root_attribute"]

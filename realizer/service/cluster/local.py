@@ -130,9 +130,18 @@ class LocalCluster:
     def _start(self, role: str, extra: list[str]) -> Child:
         process = subprocess.Popen(
             [
-                sys.executable, "-m", "realizer", role, "--nats", self.nats_url,
-                "--lease-ttl", str(self.lease_ttl), "--fps", str(self.fps), *extra,
-            ],  # fmt: skip
+                sys.executable,
+                "-m",
+                "realizer",
+                role,
+                "--nats",
+                self.nats_url,
+                "--lease-ttl",
+                str(self.lease_ttl),
+                "--fps",
+                str(self.fps),
+                *extra,
+            ],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             env={**os.environ, "PYTHONUNBUFFERED": "1"},
@@ -182,8 +191,7 @@ class LocalCluster:
             self._start("worker", ["--port", "0", *(worker_args or [])]) for _ in range(workers)
         ]
         started_gateways = [
-            self._start("gateway", ["--port", "0", *(gateway_args or [])])
-            for _ in range(gateways)
+            self._start("gateway", ["--port", "0", *(gateway_args or [])]) for _ in range(gateways)
         ]
         for child in started_workers + started_gateways:
             self._ready(child, timeout)

@@ -177,6 +177,7 @@ class OwnerRequest:
     reply_to: str = ""
     bml: str = ""
     block: str = ""
+    model: bool = False  # view: send the deformation model too
 
     def pack(self) -> bytes:
         return _pack(
@@ -187,6 +188,7 @@ class OwnerRequest:
                 "to": self.reply_to,
                 "bml": self.bml,
                 "block": self.block,
+                "model": self.model,
             }
         )
 
@@ -202,6 +204,7 @@ class OwnerRequest:
             reply_to=_text(message, "to", limits.id_chars, empty=True),
             bml=_text(message, "bml", limits.request_bytes, empty=op != "bml"),
             block=_text(message, "block", limits.id_chars, empty=op != "interrupt"),
+            model=message.get("model") is True,
         )
 
 
@@ -215,12 +218,14 @@ class OwnerReply:
     character over); ``full``: this worker has no room for one more
     character; ``none``: there is no such character (an interrupt of a
     character nobody made); ``error``: refused with ``reason`` (a viewer
-    limit). ``mesh``: the viewer's mesh message, for ``view``."""
+    limit). ``mesh``: the viewer's mesh message, for ``view``, and
+    ``model`` the deformation model message when the request asked."""
 
     status: ReplyStatus
     worker: str = ""
     reason: str = ""
     mesh: bytes = b""
+    model: bytes = b""
 
     def pack(self) -> bytes:
         return _pack(
@@ -230,6 +235,7 @@ class OwnerReply:
                 "worker": self.worker,
                 "reason": self.reason,
                 "mesh": self.mesh,
+                "model": self.model,
             },
             use_bin_type=True,
         )
@@ -240,14 +246,15 @@ class OwnerReply:
         status = message.get("status")
         if status not in ("ok", "retry", "full", "none", "error"):
             raise ClusterMessageError(f"unknown status {status!r}")
-        mesh = message.get("mesh", b"")
-        if not isinstance(mesh, bytes):
-            raise ClusterMessageError("'mesh' must be bytes")
+        mesh, model = message.get("mesh", b""), message.get("model", b"")
+        if not isinstance(mesh, bytes) or not isinstance(model, bytes):
+            raise ClusterMessageError("'mesh' and 'model' must be bytes")
         return cls(
             status=status,
             worker=_text(message, "worker", CLUSTER_LIMITS.id_chars, empty=True),
             reason=_text(message, "reason", 4096, empty=True),
             mesh=mesh,
+            model=model,
         )
 
 

@@ -313,8 +313,9 @@ class ClusterWorker(RealizerService):
             messages = self.stage.interrupt(character, request.block, now)
             self._publish_feedback(messages, request.reply_to)
         else:
-            mesh = self._encoder(character).mesh_bytes
-            self._reply(msg, OwnerReply("ok", self.worker_id, mesh=mesh))
+            encoder = self._encoder(character)
+            model = encoder.model_bytes if request.model else b""
+            self._reply(msg, OwnerReply("ok", self.worker_id, mesh=encoder.mesh_bytes, model=model))
             return
         self._reply(msg, OwnerReply("ok", self.worker_id))
 
