@@ -170,9 +170,14 @@ def _cluster_or_skip() -> Any:
 
 
 @pytest.fixture
-def cluster() -> Iterator[Any]:
+def cluster(request: pytest.FixtureRequest) -> Iterator[Any]:
+    """A nats-server on a free loopback port; the test starts the realizer
+    processes. The lease time is 2 s where the test waits for a takeover,
+    5 s elsewhere, so that a process starved of CPU on a loaded machine is
+    not taken for dead where the test does not mean it."""
     local_cluster = _cluster_or_skip()
-    with local_cluster(lease_ttl=2.0) as running:
+    ttl = 2.0 if "take" in request.node.name else 5.0
+    with local_cluster(lease_ttl=ttl) as running:
         yield running
 
 
@@ -251,7 +256,7 @@ def test_a_submitter_on_one_gateway_and_a_viewer_on_the_other_see_the_block(clus
 
 
 @pytest.mark.slow
-def test_killing_the_owner_mid_block_ends_the_block_and_another_worker_takes_over(
+def test_killing_the_owner_mid_block_ends_the_block_and_another_worker_takes_over_the_character(
     cluster: Any,
 ) -> None:
     from realizer.service.client import SubmitClient, ViewClient
@@ -331,3 +336,37 @@ def test_a_worker_stopped_with_sigterm_lets_its_running_block_finish_then_hands_
         assert not [m for m in messages if m.get("kind") == "warning"]
         assert owner.process.wait(20 * UNIT) == 0
         assert owner_of([other], "dora") is other
+
+
+@pytest.mark.slow
+def test_an_owner_paused_past_its_lease_is_taken_over_and_lets_the_character_go(
+    cluster: Any,
+) -> None:
+    import signal
+
+    from realizer.service.client import SubmitClient
+
+    workers, (gate_a,) = cluster.start(workers=2, gateways=1)
+    with SubmitClient(f"ws://127.0.0.1:{gate_a.port}", character="erin") as submitter:
+        submitter.submit(smile("long", 30.0, "erin"))
+        read_until(submitter, block_state("long", "accepted"), 10 * UNIT)
+        owner = owner_of(workers, "erin")
+        (other,) = [w for w in workers if w is not owner]
+        owner.process.send_signal(signal.SIGSTOP)
+        try:
+            messages = read_until(submitter, block_state("long", "interrupted"), 20 * UNIT)
+            assert any("was lost" in m.get("xml", "") for m in messages)
+            assert owner_of([other], "erin") is other
+        finally:
+            owner.process.send_signal(signal.SIGCONT)
+        # Back, the old owner finds its lease taken and stops running erin:
+        # exactly one end of the block, and erin is owned only by the other.
+        deadline = time.monotonic() + 10 * UNIT
+        while "erin" in health(owner.port)["owned"]:
+            assert time.monotonic() < deadline, "the old owner still runs erin"
+            time.sleep(0.05)
+        submitter.submit(smile("after", 0.3, "erin"))
+        after = read_until(submitter, block_state("after", "done", "rejected"), 10 * UNIT)
+        assert after[-1]["state"] == "done"
+        assert [m for m in after if m.get("block") == "long"] == []
+        assert "erin" not in health(owner.port)["owned"]

@@ -32,6 +32,7 @@ import http
 import logging
 import time
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlsplit
@@ -95,6 +96,8 @@ class Owned:
     subscription: Subscription | None = None
     lock: asyncio.Lock = field(default_factory=asyncio.Lock)
     dirty: bool = False
+    recorded: tuple[str, ...] = ()  # the open blocks the lease last said
+    held: list[Outgoing] = field(default_factory=list)  # feedback while not fresh
 
 
 class ClusterWorker(RealizerService):
@@ -217,8 +220,22 @@ class ClusterWorker(RealizerService):
                 logger.debug("publish on %s failed: %s", subject, exc)
 
     def _dispatch(self, messages: Any, also: Submitter | None = None) -> None:
-        """The clock's and the shutdown's feedback goes to the gateways."""
-        self._publish_feedback(messages)
+        """The clock's and the shutdown's feedback goes to the gateways.
+
+        Feedback of a character whose lease this worker could not renew for
+        half its time is held back (bounded) until a renewal succeeds, and
+        dropped when another worker turns out to own it: a paused owner
+        that comes back must not report progress of blocks the new owner
+        has already ended."""
+        ready: list[Outgoing] = []
+        for message in messages:
+            owned = self.owned.get(message.character)
+            if owned is not None and (owned.held or not self._fresh(owned)):
+                if len(owned.held) < self.limits.feedback_backlog:
+                    owned.held.append(message)
+            else:
+                ready.append(message)
+        self._publish_feedback(ready)
 
     def _publish_feedback(self, messages: Any, reply_to: str = "", follow: bool = False) -> None:
         for message in messages:
@@ -348,10 +365,10 @@ class ClusterWorker(RealizerService):
         """Whether this worker may still act as owner (renewed within ttl/2)."""
         return time.monotonic() - owned.renewed < self.table.ttl / 2
 
-    def _lease_value(self, character: str) -> bytes:
+    def _lease_value(self, character: str) -> LeaseValue:
         found = self.stage.characters.get(character)
         blocks = tuple(found.open_blocks)[: CLUSTER_LIMITS.lease_blocks] if found else ()
-        return LeaseValue(self.worker_id, blocks).pack()
+        return LeaseValue(self.worker_id, blocks)
 
     async def _create(self, character: str) -> bool:
         assert self.kv is not None
@@ -374,28 +391,12 @@ class ClusterWorker(RealizerService):
         if not await self._own(character, revision):
             return False
         self.takeovers += 1
-        now = self.now()
-        lost: list[Outgoing] = []
-        for block in lease.value.blocks:
-            text = (
-                f"block {block!r} was lost: the realizer that ran it "
-                f"({lease.value.owner or 'unknown'}) stopped; character {character!r} "
-                f"is now run by {self.worker_id}"
-            )
-            end = block_progress(block, "end", now, character, status="INTERRUPTED")
-            lost += [
-                WireFeedback(
-                    character,
-                    "warning",
-                    block,
-                    now,
-                    warning_feedback_xml(block, character, "CANNOT_CREATE_BEHAVIOR", text),
-                ),
-                WireFeedback(character, end.kind, block, now, end.xml),
-                BlockEvent(character, block, "interrupted", now),
-            ]
-        self.lost_blocks += len(lease.value.blocks)
-        self._publish_feedback(lost)
+        self._end_lost_blocks(
+            character,
+            lease.value.blocks,
+            f"the realizer that ran it ({lease.value.owner or 'unknown'}) stopped; "
+            f"character {character!r} is now run by {self.worker_id}",
+        )
         logger.warning(
             "took over character %r from %s (%d blocks lost)",
             character,
@@ -403,6 +404,23 @@ class ClusterWorker(RealizerService):
             len(lease.value.blocks),
         )
         return True
+
+    def _end_lost_blocks(self, character: str, blocks: Iterable[str], why: str) -> None:
+        """End blocks nobody will run any more: a ``warningFeedback``
+        saying why, the block's end (interrupted) and its block event."""
+        now = self.now()
+        lost: list[Outgoing] = []
+        for block in blocks:
+            text = f"block {block!r} was lost: {why}"
+            xml = warning_feedback_xml(block, character, "CANNOT_CREATE_BEHAVIOR", text)
+            end = block_progress(block, "end", now, character, status="INTERRUPTED")
+            lost += [
+                WireFeedback(character, "warning", block, now, xml),
+                WireFeedback(character, end.kind, block, now, end.xml),
+                BlockEvent(character, block, "interrupted", now),
+            ]
+            self.lost_blocks += 1
+        self._publish_feedback(lost)
 
     async def _own(self, character: str, revision: int) -> bool:
         assert self.nats is not None and self.kv is not None
@@ -431,10 +449,9 @@ class ClusterWorker(RealizerService):
             if self.owned.get(character) is not owned:
                 return False
             owned.dirty = False
+            value = self._lease_value(character)
             try:
-                revision = await self.kv.update(
-                    token(character), self._lease_value(character), last=owned.revision
-                )
+                revision = await self.kv.update(token(character), value.pack(), last=owned.revision)
             except KeyWrongLastSequenceError:
                 self._lose(character, "its lease was taken over")
                 return False
@@ -444,6 +461,10 @@ class ClusterWorker(RealizerService):
                 return False
             owned.revision = revision
             owned.renewed = time.monotonic()
+            owned.recorded = value.blocks
+            if owned.held:
+                held, owned.held = owned.held, []
+                self._publish_feedback(held)
             return True
 
     def _lose(self, character: str, why: str) -> None:
@@ -454,6 +475,13 @@ class ClusterWorker(RealizerService):
         logger.warning("lost character %r: %s", character, why)
         if owned.subscription is not None:
             self._spawn(owned.subscription.unsubscribe())
+        # The taker-over ends the blocks the lease recorded; the ones
+        # accepted since then only this worker knows of: end them here.
+        found = self.stage.characters.get(character)
+        unrecorded = [b for b in (found.open_blocks if found else ()) if b not in owned.recorded]
+        self._end_lost_blocks(
+            character, unrecorded, f"{self.worker_id} lost character {character!r} ({why})"
+        )
         self._drop(character)
 
     async def _release(self, character: str) -> None:
