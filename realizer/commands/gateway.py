@@ -15,6 +15,8 @@ import os
 import sys
 from typing import Any
 
+from realizer.commands import plain_text
+
 
 def register(subparsers: Any) -> None:
     from realizer.commands.worker import add_cluster_options
@@ -22,7 +24,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "gateway",
         help="serve the realizer's endpoints for a cluster of workers over NATS",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     add_cluster_options(parser)
     parser.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")

@@ -15,12 +15,14 @@ import argparse
 import sys
 from typing import Any
 
+from realizer.commands import plain_text
+
 
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "worker",
         help="run characters for a cluster of workers and gateways over NATS",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
+        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
     )
     add_cluster_options(parser)
     parser.add_argument(

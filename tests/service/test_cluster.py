@@ -20,6 +20,7 @@ import msgpack
 import pytest
 from websockets.exceptions import ConnectionClosed
 
+from realizer.service.client import ConnectionLost
 from realizer.service.cluster.leases import LeaseTable
 from realizer.service.cluster.protocol import (
     ClusterMessageError,
@@ -299,7 +300,7 @@ def test_when_a_gateway_is_killed_its_clients_carry_on_at_the_other(cluster: Any
     view = ViewClient(f"ws://127.0.0.1:{gate_a.port}", character="carol")
     assert submitter.run_block(smile("one", 0.3, "carol"), timeout=10 * UNIT) == "done"
     gate_a.kill()
-    with pytest.raises((ConnectionClosed, TimeoutError)):
+    with pytest.raises((ConnectionClosed, ConnectionLost, TimeoutError)):
         for _ in range(1000):
             view.receive(timeout=5 * UNIT)
     submitter.close()
@@ -309,7 +310,6 @@ def test_when_a_gateway_is_killed_its_clients_carry_on_at_the_other(cluster: Any
         ViewClient(f"ws://127.0.0.1:{gate_b.port}", character="carol") as view,
     ):
         assert submitter.run_block(smile("two", 0.5, "carol"), timeout=10 * UNIT) == "done"
-        assert lit_frames(view, 1, 10 * UNIT) or True  # the block may end before frames
         submitter.submit(smile("three", 2.0, "carol"))
         assert lit_frames(view, 2, 10 * UNIT)
 
