@@ -322,11 +322,20 @@ def test_a_worker_stopped_with_sigterm_lets_its_running_block_finish_then_hands_
 
     workers, (gate_a,) = cluster.start(workers=2, gateways=1)
     with SubmitClient(f"ws://127.0.0.1:{gate_a.port}", character="dora") as submitter:
-        submitter.submit(smile("running", 1.5, "dora"))
+        submitter.submit(smile("running", 3.0, "dora"))
         read_until(submitter, block_state("running", "accepted"), 10 * UNIT)
         owner = owner_of(workers, "dora")
         (other,) = [w for w in workers if w is not owner]
         owner.process.terminate()  # SIGTERM
+        deadline = time.monotonic() + 10 * UNIT
+        while True:
+            try:
+                if health(owner.port)["draining"]:
+                    break
+            except OSError:  # already gone: it left
+                break
+            assert time.monotonic() < deadline, "the worker did not start leaving"
+            time.sleep(0.02)
         # A block sent while the owner is leaving waits for the next owner.
         submitter.submit(smile("queued", 0.3, "dora"))
         messages = read_until(submitter, block_state("queued", "done", "rejected"), 20 * UNIT)
