@@ -59,7 +59,9 @@ def test_character_ids_with_dots_map_to_one_subject_token_and_back() -> None:
     assert token("anna.v2") == "anna=v2"
     assert untoken(token("anna.v2")) == "anna.v2"
     assert request_subject("anna.v2") == "realizer.v1.req.anna=v2"
-    assert frame_subject("a.b", ViewOptions(vertices="int16")) == "realizer.v1.frame.a=b.true_int16"
+    subject = frame_subject("a.b", ViewOptions(vertices="int16"))
+    assert subject.startswith("realizer.v1.frame.a=b.true_int16")
+    assert subject.count(".") == 4
 
 
 def test_a_request_round_trips_and_another_version_is_refused() -> None:
@@ -108,7 +110,9 @@ def test_a_want_message_is_bounded_and_validated() -> None:
 
 
 def test_format_keys_differ_per_viewer_format() -> None:
-    keys = {format_key(ViewOptions(f, v)) for f in (True, False) for v in ("none", "int16")}
+    keys = {
+        format_key(ViewOptions(fap=f, vertices=v)) for f in (True, False) for v in ("none", "int16")
+    }
     assert len(keys) == 4
 
 

@@ -293,19 +293,22 @@ class ClusterGateway(RealizerService):
         reply = await self._ask(OwnerRequest("view", character))
         if reply.status != "ok" or not reply.mesh:
             raise LimitExceeded(reply.reason or f"character {character!r} cannot be viewed")
-        for unwatched in [c for c in self.meshes if not self.viewers.get(c)]:
-            del self.meshes[unwatched]  # bounded by the characters with viewers
-            self.models.pop(unwatched, None)
+        if len(self.meshes) >= self.limits.characters:  # keep it bounded
+            for unwatched in [c for c in self.meshes if not self.viewers.get(c)]:
+                del self.meshes[unwatched]
+                self.models.pop(unwatched, None)
         self.meshes[character] = reply.mesh
 
-    async def _subscription_start(self, character: str, model: bool) -> list[bytes]:
+    async def _subscription_start(self, character: str, viewer: Viewer) -> list[bytes]:
         mesh = self.meshes[character]
-        if not model:
-            return [mesh]
-        if character not in self.models:
-            reply = await self._ask(OwnerRequest("view", character, model=True))
-            self.models[character] = reply.model
-        return [mesh, self.models[character]]
+        model = viewer.wants_model and character not in self.models
+        if model or viewer.options.coded:
+            # The model once per character; an intra frame for each coded viewer.
+            request = OwnerRequest("view", character, model=model, intra=viewer.options.coded)
+            reply = await self._ask(request)
+            if model:
+                self.models[character] = reply.model
+        return [mesh, self.models[character]] if viewer.wants_model else [mesh]
 
     def _viewers_changed(self, character: str) -> None:
         viewers = self.viewers.get(character, set())

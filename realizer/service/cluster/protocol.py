@@ -178,6 +178,7 @@ class OwnerRequest:
     bml: str = ""
     block: str = ""
     model: bool = False  # view: send the deformation model too
+    intra: bool = False  # view: a coded-FAP viewer joined, code an intra frame next
 
     def pack(self) -> bytes:
         return _pack(
@@ -189,6 +190,7 @@ class OwnerRequest:
                 "bml": self.bml,
                 "block": self.block,
                 "model": self.model,
+                "intra": self.intra,
             }
         )
 
@@ -205,6 +207,7 @@ class OwnerRequest:
             bml=_text(message, "bml", limits.request_bytes, empty=op != "bml"),
             block=_text(message, "block", limits.id_chars, empty=op != "interrupt"),
             model=message.get("model") is True,
+            intra=message.get("intra") is True,
         )
 
 

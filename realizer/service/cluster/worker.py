@@ -331,6 +331,8 @@ class ClusterWorker(RealizerService):
             self._publish_feedback(messages, request.reply_to)
         else:
             encoder = self._encoder(character)
+            if request.intra:
+                encoder.want_intra()
             model = encoder.model_bytes if request.model else b""
             self._reply(msg, OwnerReply("ok", self.worker_id, mesh=encoder.mesh_bytes, model=model))
             return
