@@ -62,8 +62,10 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import logging
+    from dataclasses import replace
 
     from realizer.commands.serve import _limits
+    from realizer.service.limits import DEFAULT_LIMITS
     from realizer.service.server import RealizerService, ServiceConfig, run_until_stopped_blocking
 
     logging.basicConfig(level=logging.WARNING, format="realizer: %(message)s")
@@ -80,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
             fps=args.fps,
             submit_token=args.submit_token or None,
             view_token=args.view_token or None,
-            limits=_limits(args.limit),
+            limits=replace(DEFAULT_LIMITS, **_limits(args.limit)),
         )
         cluster = ClusterConfig(
             args.nats, node_id=args.id, lease_ttl=args.lease_ttl, owner_wait=args.owner_wait

@@ -75,10 +75,12 @@ def add_cluster_options(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import logging
     import secrets
+    from dataclasses import replace
 
     from realizer.commands.serve import _limits
     from realizer.errors import RealizerError
     from realizer.service.assets import face_assets, load_face, session_factory
+    from realizer.service.limits import DEFAULT_LIMITS
     from realizer.service.server import RealizerService, ServiceConfig, run_until_stopped_blocking
     from realizer.service.stage import Stage
 
@@ -90,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from realizer.service.cluster.worker import ClusterWorker
 
     try:
-        limits = _limits(args.limit)
+        limits = replace(DEFAULT_LIMITS, **_limits(args.limit))
         # A worker's port serves only /health and /version, nothing a token
         # guards; a token nobody knows lets it bind to any address.
         config = ServiceConfig(

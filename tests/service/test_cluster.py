@@ -236,7 +236,12 @@ def lit_frames(view: Any, count: int, timeout: float) -> list[dict[str, Any]]:
 def test_a_submitter_on_one_gateway_and_a_viewer_on_the_other_see_the_block(cluster: Any) -> None:
     from realizer.service.client import SubmitClient, ViewClient
 
-    workers, (gate_a, gate_b) = cluster.start(workers=2, gateways=2)
+    workers, (gate_a, gate_b) = cluster.start(
+        workers=2,
+        gateways=2,
+        worker_args=["--limit", "characters=8"],
+        gateway_args=["--limit", "viewers=50"],
+    )
     with (
         ViewClient(f"ws://127.0.0.1:{gate_b.port}", character="alice") as view,
         SubmitClient(f"ws://127.0.0.1:{gate_a.port}") as submitter,
