@@ -57,9 +57,14 @@ from realizer.service.cluster.protocol import (
     unpack_feedback,
     untoken,
 )
-from realizer.service.errors import CloseCode, LimitExceeded, PeerError
+from realizer.service.errors import BadMessage, CloseCode, LimitExceeded, PeerError
 from realizer.service.limits import valid_character_id
-from realizer.service.messages import SubmitterRequest, ViewOptions, warning_feedback_xml
+from realizer.service.messages import (
+    SubmitterRequest,
+    ViewOptions,
+    read_submitter_message,
+    warning_feedback_xml,
+)
 from realizer.service.server import (
     WRITE_LIMIT,
     FaceAssets,
@@ -67,8 +72,9 @@ from realizer.service.server import (
     ServiceConfig,
     Submitter,
     Viewer,
+    _render,
 )
-from realizer.service.stage import BlockEvent, Outgoing, SessionLike, Stage, WireFeedback
+from realizer.service.stage import BlockEvent, Outgoing, Stage, WireFeedback
 
 logger = logging.getLogger("realizer.cluster")
 
@@ -105,7 +111,7 @@ def root_attribute(text: str, name: str) -> str | None:
     return None
 
 
-def _no_session(character_id: str) -> SessionLike:
+def _no_session(character_id: str) -> Any:
     raise RuntimeError("a gateway holds no character")
 
 
@@ -210,7 +216,31 @@ class ClusterGateway(RealizerService):
             await asyncio.sleep(pause)
             pause = min(pause * 2, 0.2)
 
-    async def _perform(self, submitter: Submitter, request: SubmitterRequest, now: float) -> None:
+    async def _on_submit(self, submitter: Submitter, text: str) -> None:
+        """What ``realizer serve`` does with a submitter message, with the
+        stage's work done by the character's owner; the connection's next
+        message is read only when this one is done, so order is kept."""
+        now = self.now()
+        try:
+            request = read_submitter_message(text)
+        except BadMessage as exc:  # the sender's own mistake: told to the sender alone
+            xml = warning_feedback_xml(
+                "", submitter.default_character, exc.warning_type, exc.message
+            )
+            warning = WireFeedback(submitter.default_character, "warning", "", now, xml)
+            self._push(submitter, _render(warning, submitter.format))
+            return
+        try:
+            await self._forward(submitter, request, now)
+        except Exception:
+            logger.exception("internal error on a submitted message")
+            xml = warning_feedback_xml(
+                "", submitter.default_character, "CANNOT_CREATE_BEHAVIOR", "internal error"
+            )
+            warning = WireFeedback(submitter.default_character, "warning", "", self.now(), xml)
+            self._dispatch([warning], also=submitter)
+
+    async def _forward(self, submitter: Submitter, request: SubmitterRequest, now: float) -> None:
         if request["type"] == "bml":
             text = request["bml"]
             character = (
@@ -224,7 +254,11 @@ class ClusterGateway(RealizerService):
                                also=submitter)  # fmt: skip
                 return
             owner_request = OwnerRequest(
-                "bml", character, self._submitter_name(submitter), bml=text
+                "bml",
+                character,
+                self._submitter_name(submitter),
+                bml=text,
+                strict=submitter.strict,
             )
         else:
             character = request.get("character", submitter.default_character)

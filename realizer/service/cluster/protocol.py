@@ -179,6 +179,7 @@ class OwnerRequest:
     block: str = ""
     model: bool = False  # view: send the deformation model too
     intra: bool = False  # view: a coded-FAP viewer joined, code an intra frame next
+    strict: bool = False  # bml: every warning is an error (the connection's strict mode)
 
     def pack(self) -> bytes:
         return _pack(
@@ -191,6 +192,7 @@ class OwnerRequest:
                 "block": self.block,
                 "model": self.model,
                 "intra": self.intra,
+                "strict": self.strict,
             }
         )
 
@@ -208,6 +210,7 @@ class OwnerRequest:
             block=_text(message, "block", limits.id_chars, empty=op != "interrupt"),
             model=message.get("model") is True,
             intra=message.get("intra") is True,
+            strict=message.get("strict") is True,
         )
 
 

@@ -43,7 +43,7 @@ from nats.aio.subscription import Subscription
 from nats.js.errors import KeyWrongLastSequenceError
 from nats.js.kv import KeyValue
 from websockets.asyncio.server import ServerConnection
-from websockets.http11 import Request, Response
+from websockets.http11 import Request
 
 from realizer.feedback import block_progress
 from realizer.service.cluster.bus import ClusterConfig, connect, default_node_id, lease_bucket
@@ -173,7 +173,7 @@ class ClusterWorker(RealizerService):
 
     # -- what this process serves over HTTP ----------------------------------------
 
-    def _process_request(self, connection: ServerConnection, request: Request) -> Response | None:
+    def _process_request(self, connection: ServerConnection, request: Request) -> Any:
         if urlsplit(request.path).path in ("/health", "/version"):
             return super()._process_request(connection, request)
         return _response(
@@ -317,7 +317,9 @@ class ClusterWorker(RealizerService):
             return
         now = self.now()
         if request.op == "bml":
-            result = self.stage.submit_bml(request.bml, now, character=character)
+            result = self.stage.submit_bml(
+                request.bml, now, character=character, strict=request.strict
+            )
             self._publish_feedback(
                 result.messages, request.reply_to, character in self.stage.characters
             )
