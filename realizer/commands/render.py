@@ -6,7 +6,9 @@ frame at ``--fps``, deforms the face and renders each frame offscreen
 ``.webm``, ``.mov``) or numbered PNG files into a folder (a name without a
 suffix); any other suffix is refused. Prints the BML feedback on stdout as
 the block plays, like ``realizer send``, and a progress bar on stderr when
-it is a terminal. Exit 0 when done, 1 when the block was refused, 2 when
+it is a terminal. Speech is heard: a video gets it as its audio track
+(AAC; Opus in WebM), in sync with the frames; a PNG folder gets a WAV beside
+it (``FOLDER.wav``). Exit 0 when done, 1 when the block was refused, 2 when
 rendering or writing failed.
 
 ``FILE`` may also be a FAP file: the text ``.fap`` format or an MPEG-4
@@ -169,6 +171,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"realizer render: {exc}", file=sys.stderr)
         return 2
     encoder: subprocess.Popen[bytes] | None = None
+    found = stage.characters.get(offline.character)
+    session = found.session if found is not None else None
+    soundtrack = Soundtrack(session, args.fps)
+    silent_video = args.output.with_name(f".{args.output.stem}.video{args.output.suffix}")
     if video:
         args.output.parent.mkdir(parents=True, exist_ok=True)
         encoder = subprocess.Popen(
@@ -177,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
                 "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}",
                 "-r", f"{args.fps:g}", "-i", "-",
                 "-c:v", "libx264", "-pix_fmt", "yuv420p", "-movflags", "+faststart",
-                str(args.output),
+                str(silent_video),
             ],
             stdin=subprocess.PIPE,
         )  # fmt: skip
@@ -204,6 +210,7 @@ def run(args: argparse.Namespace) -> int:
                 else:
                     save_png(image, args.output / f"frame_{frame.number:05d}.png")
                 count += 1
+                soundtrack.take(frame.number)
                 for fb in frame.feedback:  # the feedback as the block plays
                     progress.write(" ".join(fb.xml.split()), file=sys.stdout)
                 progress.update()
@@ -216,7 +223,84 @@ def run(args: argparse.Namespace) -> int:
             encoder.stdin.close()
     progress.close()
     if encoder is not None and encoder.wait() != 0:
+        silent_video.unlink(missing_ok=True)
         print("realizer render: ffmpeg failed", file=sys.stderr)
         return 2
+    try:
+        if video:
+            soundtrack.mux(silent_video, args.output, count)
+        elif soundtrack.heard:
+            wav = args.output.with_name(args.output.name + ".wav")
+            soundtrack.write_wav(wav, count)
+            print(f"realizer render: speech -> {wav}", file=sys.stderr)
+    except (OSError, subprocess.SubprocessError) as exc:
+        print(f"realizer render: writing the audio failed: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        silent_video.unlink(missing_ok=True)
     print(f"realizer render: {count} frames at {args.fps:g} fps -> {args.output}", file=sys.stderr)
     return 0
+
+
+class Soundtrack:
+    """The speech audio of a render, taken from the session frame by frame.
+
+    Frame ``n`` shows time ``n / fps``; the audio of ``[n / fps, (n + 1) / fps)``
+    is taken at that frame (before the session forgets finished speech), so
+    the track starts at the video's time 0 and stays in sync with it.
+    """
+
+    RATE = 22050
+
+    def __init__(self, session: Any, fps: float) -> None:
+        self.session = session
+        self.fps = fps
+        self.chunks: list[Any] = []
+        self.heard = False
+
+    def take(self, number: int) -> None:
+        audio = getattr(self.session, "audio", None)
+        if audio is None:
+            return
+        chunk = audio(number / self.fps, (number + 1) / self.fps, self.RATE)
+        if chunk is not None:
+            self.chunks.append(chunk)
+            self.heard = self.heard or bool(chunk.samples.any())
+
+    def samples(self, frames: int) -> Any:
+        import numpy as np
+
+        total = round(frames / self.fps * self.RATE)
+        out = np.zeros(total, dtype=np.int16)
+        for chunk in self.chunks:
+            first = round(chunk.start * self.RATE)
+            piece = chunk.samples[: max(0, total - first)]
+            out[first : first + len(piece)] = piece
+        return out
+
+    def write_wav(self, path: Path, frames: int) -> None:
+        import wave
+
+        with wave.open(str(path), "wb") as wav:
+            wav.setnchannels(1)
+            wav.setsampwidth(2)
+            wav.setframerate(self.RATE)
+            wav.writeframes(self.samples(frames).astype("<i2").tobytes())
+
+    def mux(self, video: Path, output: Path, frames: int) -> None:
+        """The video with the speech as its audio track (AAC; Opus in WebM)."""
+        if not self.heard:
+            video.replace(output)
+            return
+        wav = output.with_name(f".{output.stem}.speech.wav")
+        try:
+            self.write_wav(wav, frames)
+            codec = ["-c:a", "libopus"] if output.suffix.lower() == ".webm" else ["-c:a", "aac"]
+            subprocess.run(
+                ["ffmpeg", "-loglevel", "error", "-y", "-i", str(video), "-i", str(wav),
+                 "-map", "0:v", "-map", "1:a", "-c:v", "copy", *codec, "-b:a", "96k",
+                 "-movflags", "+faststart", str(output)],
+                check=True,
+            )  # fmt: skip
+        finally:
+            wav.unlink(missing_ok=True)

@@ -66,6 +66,15 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the idle motion (0)")
     parser.add_argument(
+        "--tts", choices=("espeak", "piper"), default="espeak", help="speech backend (espeak)"
+    )
+    parser.add_argument(
+        "--voice", default=None, help="default voice: a language tag such as en-gb (en)"
+    )
+    parser.add_argument(
+        "--piper-model", default=None, metavar="PATH.onnx", help="Piper voice model (--tts piper)"
+    )
+    parser.add_argument(
         "--log-level",
         choices=("debug", "info", "warning", "error"),
         help="least severe log lines shown on stderr (default info)",
@@ -166,7 +175,8 @@ def run(args: argparse.Namespace) -> int:
             limits=limits,
         )
         face = load_face(settings.face)
-        make_session = session_factory(face, idle=args.idle, seed=args.seed)
+        speech = {"tts": args.tts, "voice": args.voice or "", "model": args.piper_model or ""}
+        make_session = session_factory(face, idle=args.idle, seed=args.seed, speech=speech)
         # The first session loads the engines' data (tens of ms): do it now,
         # not on the clock's time when the first character appears.
         make_session(settings.character)

@@ -45,13 +45,29 @@ def face_assets(face: Any) -> FaceAssets:
     return FaceAssets(face=face, deform=deform, colours=srgb_colours(face))
 
 
-def session_factory(face: Any, *, idle: bool = False, seed: int = 0) -> Any:
+def session_factory(
+    face: Any, *, idle: bool = False, seed: int = 0, speech: dict[str, str] | None = None
+) -> Any:
     """``character_id -> Session(character_id, face)``.
 
     With ``idle``, each character's face is kept alive between behaviours
     (realizer.face.idle: blinks, saccades, breathing, head motion), seeded by
-    ``seed`` and the character's id, so a run is reproducible."""
+    ``seed`` and the character's id, so a run is reproducible. ``speech``
+    chooses the TTS: ``{"tts": "espeak" | "piper", "voice": ..., "model":
+    ...}`` (docs/speech.md); one speech engine serves every character."""
     from realizer.session import Session
+
+    registry_for: Any = None
+    if speech:
+        from realizer.engines import EngineRegistry
+        from realizer.engines.face import FaceEngine
+        from realizer.engines.speech import SpeechEngine
+
+        options = {k: v for k, v in speech.items() if k != "tts" and v}
+        engine = SpeechEngine.default(speech.get("tts") or "espeak", **options)
+
+        def registry_for() -> Any:
+            return EngineRegistry([FaceEngine.default(), engine])
 
     def make(character_id: str) -> Session:
         motion = None
@@ -62,7 +78,8 @@ def session_factory(face: Any, *, idle: bool = False, seed: int = 0) -> Any:
 
             own = zlib.crc32(character_id.encode("utf-8"))
             motion = IdleMotion(IdleSettings(seed=seed * 2**32 + own))
-        session: Session = Session(character_id, face, idle=motion)
+        registry = registry_for() if registry_for is not None else None
+        session: Session = Session(character_id, face, idle=motion, registry=registry)
         return session
 
     return make

@@ -39,6 +39,8 @@ class OfflineRun:
     predicted_end: float | None  # seconds, from the prediction feedback
     first_feedback: tuple[WireFeedback, ...]
     frames: Iterator[OfflineFrame]
+    #: the character the block went to (for its session's speech audio)
+    character: str = ""
 
 
 def predicted_end(feedback: tuple[WireFeedback, ...] | list[WireFeedback]) -> float | None:
@@ -90,4 +92,5 @@ def run_offline(
         end,
         first,
         frames() if result.accepted else iter(()),
+        result.character,
     )

@@ -132,7 +132,8 @@ def load_backend(name: str = "espeak", **options: str) -> TtsBackend:
     if name == "espeak":
         from realizer.engines.speech.espeak import EspeakBackend
 
-        backend: TtsBackend = EspeakBackend.load(voice=options.get("voice") or None)
+        rate = int(options.get("rate") or 175)
+        backend: TtsBackend = EspeakBackend.load(voice=options.get("voice") or None, rate=rate)
         return backend
     if name == "piper":
         from realizer.engines.speech.piper import PiperBackend
