@@ -143,6 +143,7 @@ def run(args: argparse.Namespace) -> int:
         print("realizer render: ffmpeg is not installed (scripts/setup.sh)", file=sys.stderr)
         return 2
 
+    session: Any = None  # the character's session, for its speech audio
     if recorded is not None:
         offline = _replay(recorded)
         args.fps = recorded.fps
@@ -171,8 +172,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"realizer render: {exc}", file=sys.stderr)
         return 2
     encoder: subprocess.Popen[bytes] | None = None
-    found = stage.characters.get(offline.character)
-    session = found.session if found is not None else None
+    if recorded is None:
+        found = stage.characters.get(offline.character)
+        session = found.session if found is not None else None
     soundtrack = Soundtrack(session, args.fps)
     silent_video = args.output.with_name(f".{args.output.stem}.video{args.output.suffix}")
     if video:
