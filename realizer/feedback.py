@@ -125,6 +125,8 @@ def warning(
 
 @cache
 def _prefix(namespace: str) -> str:
+    if namespace == BMLA_NS:
+        return "bmla"
     return {BML_NS: ""}.get(namespace, "ext" if "coreextensions" in namespace else "rf")
 
 
@@ -147,6 +149,15 @@ def _behaviour_element(block_id: str, behaviour: Behaviour, times: Mapping[str, 
         # their times come with the syncPointProgress.
         if sync in times and sync not in markers and sync in sync_names:
             parts.append(f' {sync}="{_t(times[sync])}"')
+    if behaviour.type == "parameterValueChange":  # BMLA: its trajectory is a child
+        ramp = "".join(
+            f" {key}={quoteattr(value)}"
+            for key, value in behaviour.params
+            if key in ("initialValue", "targetValue")
+        )
+        kind = quoteattr(behaviour.param("trajectory") or "linear")
+        parts.append(f"><{prefix}:trajectory type={kind}{ramp}/></{tag}>")
+        return "".join(parts)
     if behaviour.speech is None:
         parts.append("/>")
         return "".join(parts)
@@ -169,11 +180,15 @@ def prediction(
     behaviours: Sequence[tuple[Behaviour, Mapping[str, float]]],
     time: float,
     character_id: str | None,
+    status: str = "",
 ) -> Feedback:
-    """``behaviours``: each scheduled behaviour with its sync name -> global time."""
+    """``behaviours``: each scheduled behaviour with its sync name -> global time;
+    ``status``: a BMLA block status for the ``<bml>`` (``PENDING`` for a
+    preplanned block), or ``""``."""
+    extra = f" {_BMLA} bmla:status={quoteattr(status)}" if status else ""
     parts = [
         f"<predictionFeedback {_XMLNS}{_character(character_id)}>",
-        f'<bml id={quoteattr(block_id)} globalStart="{_t(start)}" globalEnd="{_t(end)}"/>',
+        f'<bml id={quoteattr(block_id)}{extra} globalStart="{_t(start)}" globalEnd="{_t(end)}"/>',
     ]
     parts.extend(_behaviour_element(block_id, b, times) for b, times in behaviours)
     parts.append("</predictionFeedback>")

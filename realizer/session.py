@@ -130,6 +130,17 @@ class _Record:
     animations: list[Animation] = field(default_factory=list)
     #: speech audio on the session clock
     audio: list[AudioClip] = field(default_factory=list)
+    #: the parsed block, to plan it again (a preplanned block when activated)
+    result: ParseResult | None = None
+    #: behaviour id -> its animations (for BMLA interrupts and value changes)
+    owned: dict[str, list[Any]] = field(default_factory=dict)
+    #: BMLA control behaviours of the block (activate, interrupt,
+    #: parameterValueChange): behaviour id -> behaviour, acted on at its start
+    controls: dict[str, Any] = field(default_factory=dict)
+    #: BMLA: planned, waiting for an activation (bmla:preplan)
+    preplanned: bool = False
+    #: BMLA: do not start before this global time (a prependBefore block's end)
+    not_before: float = -math.inf
 
 
 @dataclass(frozen=True, slots=True)
@@ -240,13 +251,25 @@ class Session:
                 )
             )
             return None
+        control = block.control
         if block.composition == "REPLACE" and not strict:
             for block_id in self.active_blocks:
                 self.interrupt(block_id, now)
+        for block_id in control.interrupt if not strict else ():
+            self.interrupt(block_id, now)  # BMLA: bmla:interrupt="b1,b2"
         start = now
         if block.composition == "APPEND":
             ends = [r.plan.end for r in self._blocks.values() if r.lifecycle.state in ACTIVE]
             start = max([now, *ends])
+        for block_id in control.after:  # BMLA: appendAfter, chunkAfter
+            earlier = self._blocks.get(block_id)
+            if earlier is None:
+                self._emit(warning(block.id, block.id, str(WarningType.NO_SUCH_TARGET),
+                                   f"block {block.id!r} is to follow {block_id!r}, which is not "
+                                   "known; it starts without waiting for it", now,
+                                   self.character_id))  # fmt: skip
+            elif earlier.lifecycle.state in ACTIVE:
+                start = max(start, earlier.plan.end)
         external: dict[tuple[str, str, str], float] = {}
         for record in self._blocks.values():
             external.update(record.plan.global_keys())
@@ -278,21 +301,14 @@ class Session:
                 now,
                 self.character_id,
             )
-            events = self._events(plan)
-            animations: list[Animation] = []
-            audio: list[AudioClip] = []
-            for scheduled in plan.behaviours:
-                if scheduled.id in plan.unrealized:
-                    continue
-                realized = self.registry.realize(scheduled.behaviour, scheduled.times)
-                if realized is None:
-                    continue
-                # A speech realizes as several animations (lip sync) and audio.
-                parts = getattr(realized, "parts", None)
-                animations.extend(parts if parts is not None else (realized,))
-                clip = getattr(realized, "audio", None)
-                if clip is not None:
-                    audio.append(clip)
+            if control.preplan:
+                events: list[_Event] = []
+                animations: list[Any] = []
+                audio: list[Any] = []
+                owned: dict[str, list[Any]] = {}
+            else:
+                events = self._events(plan)
+                animations, audio, owned = self._realize(plan)
         except Exception as exc:  # a bug or an unforeseen value: the block fails, cleanly
             self._emit(
                 warning(
@@ -328,12 +344,196 @@ class Session:
         if block.composition == "REPLACE" and strict:
             for block_id in self.active_blocks:
                 self.interrupt(block_id, now)
+        if control.preplan:  # BMLA: the prediction says it waits to be activated
+            predicted = prediction(block.id, plan.start, plan.end,
+                                   [(s.behaviour, s.times) for s in plan.behaviours], now,
+                                   self.character_id, status="PENDING")  # fmt: skip
         self._emit(predicted)
-        record = _Record(plan, lifecycle, deque(events), animations, audio)
+        record = _Record(plan, lifecycle, deque(events), animations, audio, result, owned)
+        record.controls = _controls(plan)
+        record.preplanned = control.preplan
         self._blocks[block.id] = record
-        self._live.append(record)
+        if not control.preplan:
+            self._live.append(record)
+        for block_id in control.prepend_before:  # BMLA: the targets wait for this one
+            self._prepend(record, block_id, now)
         self._progress(now)
         return plan
+
+    def activate(self, block_id: str, now: float) -> bool:
+        """Start a preplanned block (BMLA) at ``now``; False (and a warning) if there is none.
+
+        It is planned again from ``now`` (or from the end of a block that
+        was prepended before it, if later), with a new prediction.
+        """
+        self._advance(now)
+        record = self._blocks.get(block_id)
+        if record is None or not record.preplanned or record.result is None:
+            self._emit(warning(block_id, block_id, str(WarningType.NO_SUCH_TARGET),
+                               f"no preplanned block {block_id!r} to activate", now,
+                               self.character_id))  # fmt: skip
+            return False
+        record.preplanned = False
+        self._start_at(record, max(now, record.not_before), now)
+        return True
+
+    def _start_at(self, record: _Record, start: float, now: float) -> None:
+        """Plan ``record``'s block again to start at ``start`` (global seconds)."""
+        assert record.result is not None
+        block = record.result.block
+        external: dict[tuple[str, str, str], float] = {}
+        for other in self._blocks.values():
+            if other is not record:
+                external.update(other.plan.global_keys())
+        try:
+            plan = schedule_block(block, start=start, registry=self.registry,
+                                  dropped=record.result.dropped, external=external)  # fmt: skip
+        except SchedulingFailed as exc:
+            for note in exc.warnings:
+                self._emit(warning(block.id, note.id, str(note.type), note.message, now,
+                                   self.character_id))  # fmt: skip
+            record.lifecycle.handle(BlockEvent.INTERRUPT)
+            self._emit(block_progress(block.id, "end", now, self.character_id, "FAILED"))
+            self._finished.append(record)
+            return
+        record.plan = plan
+        record.events = deque(self._events(plan))
+        record.animations, record.audio, record.owned = self._realize(plan)
+        record.controls = _controls(plan)
+        self._emit(prediction(block.id, plan.start, plan.end,
+                              [(s.behaviour, s.times) for s in plan.behaviours], now,
+                              self.character_id))  # fmt: skip
+        if record not in self._live:
+            self._live.append(record)
+
+    def _prepend(self, record: _Record, block_id: str, now: float) -> None:
+        """BMLA prependBefore: ``block_id`` does not start before ``record`` ends."""
+        later = self._blocks.get(block_id)
+        if later is None or later.lifecycle.state is not BlockState.PENDING:
+            self._emit(warning(record.plan.id, record.plan.id, str(WarningType.NO_SUCH_TARGET),
+                               f"no block {block_id!r} waiting to start, to prepend "
+                               f"{record.plan.id!r} before", now, self.character_id))  # fmt: skip
+            return
+        later.not_before = max(later.not_before, record.plan.end)
+        if not later.preplanned and later.plan.start < record.plan.end:
+            self._start_at(later, record.plan.end, now)
+
+    def _realize(self, plan: TimedPlan) -> tuple[list[Any], list[Any], dict[str, list[Any]]]:
+        """The animations, audio clips and animations by behaviour of a solved plan."""
+        animations: list[Any] = []
+        audio: list[Any] = []
+        owned: dict[str, list[Any]] = {}
+        for scheduled in plan.behaviours:
+            if scheduled.id in plan.unrealized:
+                continue
+            realized = self.registry.realize(scheduled.behaviour, scheduled.times)
+            if realized is None:
+                continue
+            # A speech realizes as several animations (lip sync) and audio.
+            parts = getattr(realized, "parts", None)
+            mine = list(parts if parts is not None else (realized,))
+            animations.extend(mine)
+            owned[scheduled.id] = mine
+            clip = getattr(realized, "audio", None)
+            if clip is not None:
+                audio.append(clip)
+        return animations, audio, owned
+
+    def _control(self, record: _Record, behaviour: Any, now: float) -> None:
+        """Act on a BMLA control behaviour whose start passed at ``now``."""
+        target = behaviour.param("target") or ""
+        if behaviour.type == "activate":
+            self.activate(target, now)
+        elif behaviour.type == "interrupt":
+            include = _ids(behaviour.param("include"))
+            exclude = _ids(behaviour.param("exclude"))
+            if not include and not exclude:
+                self.interrupt(target, now)
+            else:
+                self._interrupt_behaviours(target, include, exclude, now)
+        elif behaviour.type == "parameterValueChange":
+            self._change_parameter(record, behaviour, now)
+
+    def _interrupt_behaviours(
+        self, block_id: str, include: tuple[str, ...], exclude: tuple[str, ...], now: float
+    ) -> None:
+        """BMLA ``<bmla:interrupt include|exclude>``: stop some behaviours of a block."""
+        record = self._blocks.get(block_id)
+        if record is None or record.lifecycle.state not in ACTIVE:
+            self._emit(warning(block_id, block_id, str(WarningType.NO_SUCH_TARGET),
+                               f"no pending or running block {block_id!r} to interrupt "
+                               "behaviours of", now, self.character_id))  # fmt: skip
+            return
+        ids = [s.id for s in record.plan.behaviours]
+        chosen = {i for i in ids if (i in include if include else i not in exclude)}
+        for missing in sorted(set(include) - set(ids)):
+            self._emit(warning(block_id, f"{block_id}:{missing}", str(WarningType.NO_SUCH_TARGET),
+                               f"block {block_id!r} has no behaviour {missing!r} to interrupt",
+                               now, self.character_id))  # fmt: skip
+        from realizer.face.tracks import InterruptedAnimation
+
+        for behaviour_id in sorted(chosen, key=ids.index):
+            pending = [e for e in record.events if e[6] == behaviour_id]
+            if not pending:
+                continue  # already over
+            record.events = deque(e for e in record.events if e[6] != behaviour_id)
+            stopped = {id(a) for a in record.owned.get(behaviour_id, ())}
+            record.animations = [
+                InterruptedAnimation(a, at=now, release=self.limits.release)
+                if id(a) in stopped else a
+                for a in record.animations
+            ]  # fmt: skip
+            record.audio = [
+                c.cut(now) if getattr(c, "behaviour_id", "") == behaviour_id else c
+                for c in record.audio
+            ]
+            # The behaviour's end is reported at the moment it stopped.
+            self._emit(sync_point_progress(block_id, behaviour_id, "end", now - record.plan.start,
+                                           now, self.character_id))  # fmt: skip
+
+    def _change_parameter(self, record: _Record, behaviour: Any, now: float) -> None:
+        """BMLA parametervaluechange: move a parameter of a behaviour along a ramp."""
+        from realizer.control import CHANGEABLE, Ramp, ScaledAnimation, scaled_clip
+
+        target = behaviour.param("target") or ""
+        block_id, _, behaviour_id = target.rpartition(":")
+        block_id = block_id or record.plan.id
+        param = behaviour.param("paramId") or ""
+        owner = self._blocks.get(block_id)
+        scheduled = next(
+            (s for s in owner.plan.behaviours if s.id == behaviour_id), None
+        ) if owner is not None else None  # fmt: skip
+        times = next(s.times for s in record.plan.behaviours if s.id == behaviour.id)
+        if owner is None or scheduled is None or param not in CHANGEABLE:
+            why = (
+                f"{param!r} is not a parameter that can change (only {', '.join(CHANGEABLE)})"
+                if param not in CHANGEABLE
+                else f"{target!r} names no behaviour"
+            )
+            self._emit(warning(record.plan.id, f"{record.plan.id}:{behaviour.id}",
+                               str(WarningType.NO_SUCH_TARGET), f"{behaviour.id}: {why}", now,
+                               self.character_id))  # fmt: skip
+            return
+        own = scheduled.behaviour.number("amount", 1.0) if param == "amount" else 1.0
+        initial = behaviour.number("initialValue", own)
+        goal = behaviour.number("targetValue", own)
+        scale = 1.0 / own if own else 1.0
+        ramp = Ramp(times["start"], times["end"], initial * scale, goal * scale)
+        if param == "volume":
+            owner.audio = [
+                scaled_clip(c, ramp) if getattr(c, "behaviour_id", "") == behaviour_id else c
+                for c in owner.audio
+            ]
+            return
+        changed = {id(a) for a in owner.owned.get(behaviour_id, ())}
+        replaced: list[Any] = []
+        for animation in owner.animations:
+            replaced.append(
+                ScaledAnimation(animation, ramp) if id(animation) in changed else animation
+            )
+        owner.animations = replaced
+        owner.owned[behaviour_id] = [a for a in replaced if isinstance(a, ScaledAnimation)
+                                     and id(a.base) in changed]  # fmt: skip
 
     def _failed(self, block: Any, start: float, lifecycle: BlockLifecycle) -> None:
         lifecycle.handle(BlockEvent.FAIL)
@@ -504,14 +704,21 @@ class Session:
             return
         due.sort(key=lambda item: item[0])
         previous = -math.inf
+        again = False  # a control started a block whose first events are due now
         for (*_, kind, behaviour_id, sync, exact), record in due:
             # Events of one microsecond keep the documented order; their exact
             # times, a round-off apart, are made non-decreasing with it.
             time = previous = max(exact, previous)
             block_id = record.lifecycle.block_id
+            if record.lifecycle.state not in ACTIVE:
+                continue  # stopped by a control acted on earlier in this batch
             if kind == "start":
                 record.lifecycle.handle(BlockEvent.START)
                 self._emit(block_progress(block_id, "start", time, self.character_id, "IN_EXEC"))
+                if record.result is not None:
+                    for later in record.result.block.control.on_start:  # BMLA onStart
+                        self.activate(later, time)
+                        again = True
             elif kind == "sync":
                 self._emit(
                     sync_point_progress(
@@ -523,7 +730,24 @@ class Session:
                         self.character_id,
                     )
                 )
+                if sync == "start" and behaviour_id in record.controls:
+                    self._control(record, record.controls[behaviour_id], time)
+                    again = True
             else:
                 record.lifecycle.handle(BlockEvent.FINISH)
                 self._finished.append(record)
                 self._emit(block_progress(block_id, "end", time, self.character_id, "DONE"))
+        if again:
+            self._progress(now)
+
+
+#: Behaviour types of AsapRealizer's BMLA that control the realizer.
+CONTROL_TYPES = frozenset({"activate", "interrupt", "parameterValueChange"})
+
+
+def _controls(plan: TimedPlan) -> dict[str, Any]:
+    return {s.id: s.behaviour for s in plan.behaviours if s.behaviour.type in CONTROL_TYPES}
+
+
+def _ids(raw: str | None) -> tuple[str, ...]:
+    return tuple(part.strip() for part in (raw or "").split(",") if part.strip())

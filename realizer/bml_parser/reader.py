@@ -55,8 +55,10 @@ from realizer.bml_parser.errors import (
 from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement
 from realizer.bml_parser.syncref import MAX_ITERATION, SyncRef, parse_sync_ref
 from realizer.bml_parser.tree import (
+    NO_CONTROL,
     Behaviour,
     Block,
+    BlockControl,
     Constraint,
     Description,
     Relation,
@@ -64,9 +66,17 @@ from realizer.bml_parser.tree import (
     SpeechText,
     TextSync,
 )
-from realizer.bml_parser.vocabulary import BML_NS, DIALECTS, DRAFT_NS, BehaviourSpec, vocabulary
+from realizer.bml_parser.vocabulary import (
+    BML_NS,
+    BMLA_NS,
+    DIALECTS,
+    DRAFT_NS,
+    BehaviourSpec,
+    vocabulary,
+)
 
 COMPOSITIONS = ("MERGE", "APPEND", "REPLACE")
+_BMLA_PREFIX = "{" + BMLA_NS + "}"
 _RELATION_KINDS = ("synchronize", "before", "after")
 _CHECKED_TYPES = frozenset({"fap", "emotion", "head"})
 # Clark-name prefixes ("{ns" before the "}") of the namespaces whose
@@ -413,6 +423,33 @@ class _Reader:
             constraints=tuple(constraints),
             prolog=prolog,  # type: ignore[arg-type]
             epilog=epilog,  # type: ignore[arg-type]
+            control=self.block_control(root),
+        )
+
+    def block_control(self, root: Any) -> BlockControl:
+        """The BMLA attributes of ``<bml>`` (BlockControl); none: the shared empty one."""
+        if not any(name.startswith(_BMLA_PREFIX) for name in root.attrib):
+            return NO_CONTROL
+
+        def ids(name: str) -> tuple[str, ...]:
+            raw = root.get(_BMLA_PREFIX + name, "")
+            found = tuple(part.strip() for part in raw.split(",") if part.strip())
+            if len(found) > self.limits.max_behaviours:
+                raise self.error(BmlSecurityError, f"bmla:{name} names too many blocks", root)
+            return found
+
+        preplan = root.get(_BMLA_PREFIX + "preplan", "false").strip().lower()
+        if preplan not in ("true", "false"):
+            raise self.error(
+                BmlSyntaxError, f"bmla:preplan={preplan!r} is not true or false", root, "preplan"
+            )
+        return BlockControl(
+            interrupt=ids("interrupt"),
+            on_start=ids("onStart"),
+            append_after=ids("appendAfter"),
+            chunk_after=ids("chunkAfter"),
+            prepend_before=ids("prependBefore"),
+            preplan=preplan == "true",
         )
 
     def block_child(
@@ -578,8 +615,20 @@ class _Reader:
                     speech = self.speech_text(child, inner, behaviour_id, aliases)
                     children.append(speech)
                     continue
+            elif (
+                spec.type == "parameterValueChange"
+                and tag == _BMLA_PREFIX + "trajectory"
+                and "targetValue" not in dict(params)
+            ):
+                problem = problem or self.trajectory(child, params, behaviour_id)
             children.append(self.other(child, inner, 2))
         fields["children"] = tuple(children)
+        if (
+            spec.type == "parameterValueChange"
+            and not problem
+            and "targetValue" not in dict(params)
+        ):
+            problem = f"<bmla:parametervaluechange> {behaviour_id!r} has no <bmla:trajectory>"
 
         if problem:
             self.warn(
@@ -605,6 +654,24 @@ class _Reader:
             speech,
             tuple(descriptions),
         )
+
+    def trajectory(self, el: Any, params: list[tuple[str, str]], behaviour_id: str) -> str:
+        """A BMLA ``<trajectory type initialValue? targetValue>`` into ``params``
+        (``trajectory``, ``initialValue``, ``targetValue``); a problem or ``""``."""
+        kind = el.get("type", "linear")
+        if kind != "linear":
+            return f"trajectory type {kind!r} of {behaviour_id!r} is not supported (linear is)"
+        for name in ("initialValue", "targetValue"):
+            value = el.get(name)
+            if value is None:
+                if name == "targetValue":
+                    return f"the trajectory of {behaviour_id!r} has no targetValue"
+                continue
+            if not _number_within(value, self.limits.max_number):
+                return f"{name}={value!r} in the trajectory of {behaviour_id!r} is not a number"
+            params.append((name, value))
+        params.append(("trajectory", kind))
+        return ""
 
     @staticmethod
     def translate(

@@ -131,6 +131,35 @@ class Required(XmlElement):
 
 
 @dataclass(frozen=True, slots=True)
+class BlockControl:
+    """AsapRealizer's BMLA attributes of a ``<bml>`` block (namespace
+    ``http://www.asap-project.org/bmla``; protocols/bml-extensions.md).
+
+    Each list holds block ids, as written (comma-separated) in the attribute
+    of the same name: ``interrupt`` the blocks this one interrupts when it
+    arrives, ``on_start`` the preplanned blocks it activates when it starts,
+    ``append_after`` / ``chunk_after`` the blocks it starts after,
+    ``prepend_before`` the not yet started blocks that wait for its end;
+    ``preplan``: planned now, started only when activated.
+    """
+
+    interrupt: tuple[str, ...] = ()
+    on_start: tuple[str, ...] = ()
+    append_after: tuple[str, ...] = ()
+    chunk_after: tuple[str, ...] = ()
+    prepend_before: tuple[str, ...] = ()
+    preplan: bool = False
+
+    @property
+    def after(self) -> tuple[str, ...]:
+        """The blocks this one starts after (appendAfter and chunkAfter)."""
+        return self.append_after + self.chunk_after
+
+
+NO_CONTROL = BlockControl()
+
+
+@dataclass(frozen=True, slots=True)
 class Block(XmlElement):
     """A ``<bml>`` block.
 
@@ -147,6 +176,7 @@ class Block(XmlElement):
     constraints: tuple[Constraint, ...] = ()
     prolog: tuple[Comment | ProcessingInstruction, ...] = ()
     epilog: tuple[Comment | ProcessingInstruction, ...] = ()
+    control: BlockControl = NO_CONTROL
 
     def behaviour(self, behaviour_id: str) -> Behaviour | None:
         for behaviour in self.behaviours:

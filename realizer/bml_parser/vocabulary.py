@@ -28,6 +28,7 @@ DIALECTS: dict[str, str] = {
     EXT_NS: "ext",
     DRAFT_NS: "draft",
     REALIZER_NS: "realizer",
+    BMLA_NS: "bmla",
     "": "draft",
 }
 

@@ -43,6 +43,7 @@ at all when the FAPs did not change.
 from __future__ import annotations
 
 import logging
+import math
 import re
 import threading
 from collections.abc import Callable, Iterable
@@ -163,6 +164,8 @@ END_GRACE_SECONDS = 1.0
 _ID_ATTRIBUTE = re.compile(r"\sid\s*=\s*[\"']([^\"'<>]{0,200})[\"']")
 _FEEDBACK_ID = re.compile(r"\sid\s*=\s*[\"']([^\"']*)[\"']")
 # BMLA's block status (realizer.feedback): INTERRUPTED while running, REVOKED before
+_PENDING = re.compile(r"[\s:]status\s*=\s*[\"']PENDING[\"']")
+_GLOBAL_END = re.compile(r"\sglobalEnd\s*=\s*[\"']([0-9.eE+-]{1,40})[\"']")
 _INTERRUPTED = re.compile(r"[\s:]status\s*=\s*[\"'](?:INTERRUPTED|REVOKED)[\"']")
 
 
@@ -511,7 +514,10 @@ class Stage:
                 self._open(found, admit, now, plan_end)
                 messages.append(BlockEvent(found.id, admit, "accepted", now))
                 admit = None
+                self._predicted(found, fb, now)
                 continue
+            if fb.kind == "prediction" and fb.block_id in found.open_blocks:
+                self._predicted(found, fb, now)  # planned again (a BMLA activation)
             if _is_block_end(fb) and fb.block_id in found.open_blocks:
                 del found.open_blocks[fb.block_id]
                 found.deadlines.pop(fb.block_id, None)
@@ -526,6 +532,20 @@ class Stage:
             self._open(found, admit, now, plan_end)
             messages.append(BlockEvent(found.id, admit, "accepted", now))
         return messages
+
+    def _predicted(self, found: Character, fb: Feedback, now: float) -> None:
+        """A block's deadline follows its latest prediction; a BMLA preplanned
+        block (``bmla:status="PENDING"``) waits for its activation, without one."""
+        if _PENDING.search(fb.xml):
+            found.deadlines.pop(fb.block_id, None)
+            return
+        match = _GLOBAL_END.search(fb.xml)
+        try:
+            end = float(match.group(1)) if match is not None else math.nan
+        except ValueError:
+            end = math.nan
+        if end == end:
+            found.deadlines[fb.block_id] = max(now, end) + END_GRACE_SECONDS
 
     def _open(self, found: Character, block_id: str, now: float, plan_end: float | None) -> None:
         found.open_blocks[block_id] = now
