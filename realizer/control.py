@@ -88,3 +88,32 @@ def scaled_clip(clip: Any, ramp: Ramp) -> Any:
     gain = ramp.initial + share * (ramp.target - ramp.initial)
     scaled = np.clip(np.rint(samples * gain), -32768, 32767).astype(np.int16)
     return type(clip)(clip.start, scaled, clip.sample_rate, clip.behaviour_id)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Window:
+    """An animation shown only from ``start`` (seconds): a gaze re-aimed at a
+    target that moved takes over from the old one at that moment (a saccade)."""
+
+    base: Any
+    from_time: float
+
+    @property
+    def start(self) -> float:
+        return max(float(self.base.start), self.from_time)
+
+    @property
+    def end(self) -> float:
+        return float(self.base.end)
+
+    @property
+    def priority(self) -> int:
+        return int(self.base.priority)
+
+    @property
+    def blend(self) -> str:
+        return str(getattr(self.base, "blend", "add"))
+
+    def evaluate(self, now: float) -> tuple[Any, Any]:
+        values, weights = self.base.evaluate(now)
+        return values, weights

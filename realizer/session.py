@@ -23,6 +23,7 @@ blocks already planned (``bml1:nod1:end``); they are fixed times for it.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 from collections import deque
@@ -46,6 +47,7 @@ if TYPE_CHECKING:  # the types only; the modules load when a face or speech is u
     from realizer.face.animation import Animation
     from realizer.face.idle import IdleMotion
     from realizer.face.model import Face
+    from realizer.scene import Scene
 
 _UNSET: Any = object()
 _MIXER: tuple[Any, Any] | None = None
@@ -167,6 +169,7 @@ class Session:
         registry: EngineRegistry | None = None,
         limits: SessionLimits | None = None,
         idle: IdleMotion | None = None,
+        scene: Scene | None = None,
     ) -> None:
         self.character_id = character_id
         #: the character's face (None: the default face)
@@ -174,6 +177,9 @@ class Session:
         # Idle motion (realizer.face.idle.IdleMotion, or None: off): fills the
         # FAPs no animation sets, so explicit behaviours win per FAP.
         self.idle = idle
+        # The targets gaze, gazeShift, pointing and headDirectionShift look at
+        # (realizer.scene.Scene, shared by a server's characters), or None.
+        self.scene = scene
         self.registry = registry or EngineRegistry.standard()
         self.limits = limits or SessionLimits()
         self.now = float("-inf")
@@ -426,7 +432,9 @@ class Session:
         for scheduled in plan.behaviours:
             if scheduled.id in plan.unrealized:
                 continue
-            realized = self.registry.realize(scheduled.behaviour, scheduled.times)
+            realized = self.registry.realize(
+                self._aimed(plan.id, scheduled.behaviour, warn=True), scheduled.times
+            )
             if realized is None:
                 continue
             # A speech realizes as several animations (lip sync) and audio.
@@ -438,6 +446,62 @@ class Session:
             if clip is not None:
                 audio.append(clip)
         return animations, audio, owned
+
+    def _aimed(self, block_id: str, behaviour: Any, warn: bool = False) -> Any:
+        """The behaviour with its scene target's direction (``sceneYaw``,
+        ``scenePitch``: degrees, yaw to the left, pitch down) for the engine;
+        a target neither the scene nor the direction words know: a warning."""
+        if behaviour.type not in SCENE_TYPES:
+            return behaviour
+        target = (behaviour.param("target") or "").strip()
+        if target.upper().replace("_", "") in DIRECTION_WORDS:
+            return behaviour
+        found = self.scene.direction(self.character_id, target) if self.scene else None
+        if found is None:
+            if warn:
+                known = ", ".join(sorted(self.scene.targets)) if self.scene else "none"
+                self._emit(warning(block_id, f"{block_id}:{behaviour.id}",
+                                   str(WarningType.NO_SUCH_TARGET),
+                                   f"{behaviour.id}: target {target!r} is not in the scene "
+                                   f"(targets: {known}; or a direction word); it looks straight "
+                                   "ahead", self.now, self.character_id))  # fmt: skip
+            return behaviour
+        yaw, pitch = found
+        params = (*behaviour.params, ("sceneYaw", f"{yaw:.6f}"), ("scenePitch", f"{-pitch:.6f}"))
+        return dataclasses.replace(behaviour, params=params)
+
+    def target_moved(self, name: str, now: float) -> None:
+        """A scene target moved (or appeared) at ``now``: behaviours aimed at
+        it look at its new place from now on (the eyes jump, as in a saccade)."""
+        from realizer.control import Window
+        from realizer.face.tracks import InterruptedAnimation
+
+        self._advance(now)
+        for record in self._live:
+            if record.lifecycle.state not in ACTIVE:
+                continue
+            for scheduled in record.plan.behaviours:
+                behaviour = scheduled.behaviour
+                if (
+                    behaviour.type not in SCENE_TYPES
+                    or (behaviour.param("target") or "").strip() != name
+                    or scheduled.end <= now
+                    or scheduled.id in record.plan.unrealized
+                ):
+                    continue
+                realized = self.registry.realize(self._aimed(record.plan.id, behaviour),
+                                                 scheduled.times)  # fmt: skip
+                if realized is None:
+                    continue
+                old = {id(a) for a in record.owned.get(scheduled.id, ())}
+                new: list[Any] = [
+                    Window(a, now) for a in getattr(realized, "parts", None) or (realized,)
+                ]
+                record.animations = [
+                    InterruptedAnimation(a, at=now, release=0.0) if id(a) in old else a
+                    for a in record.animations
+                ] + new  # fmt: skip
+                record.owned[scheduled.id] = new
 
     def _control(self, record: _Record, behaviour: Any, now: float) -> None:
         """Act on a BMLA control behaviour whose start passed at ``now``."""
@@ -740,6 +804,13 @@ class Session:
         if again:
             self._progress(now)
 
+
+#: Behaviour types whose ``target`` names a place in the scene.
+SCENE_TYPES = frozenset({"gaze", "gazeShift", "pointing", "headDirectionShift"})
+#: BML 1.0 direction words a gaze may name instead of a target (upper case, no "_").
+DIRECTION_WORDS = frozenset(
+    {"LEFT", "RIGHT", "UP", "DOWN", "UPLEFT", "UPRIGHT", "DOWNLEFT", "DOWNRIGHT"}
+)
 
 #: Behaviour types of AsapRealizer's BMLA that control the realizer.
 CONTROL_TYPES = frozenset({"activate", "interrupt", "parameterValueChange"})

@@ -38,8 +38,11 @@ keyframe at each stroke (``stroke``, ``stroke:2``, ...): a NOD goes down at
 every stroke and back up between, a SHAKE turns left at each stroke and right
 between, a TILT tilts at the strokes and holds until ``relax``.
 
-Gaze targets: without a scene model, the direction words (LEFT, RIGHT, UP,
-DOWN, UPLEFT, ...) used as ``target`` or ``offsetDirection`` turn the gaze by
+Gaze targets: a target the session's scene knows (``realizer.scene``: the
+camera, the user, other characters' eyes, targets clients place) arrives as
+``sceneYaw``/``scenePitch`` degrees and is looked at; otherwise the
+direction words (LEFT, RIGHT, UP, DOWN, UPLEFT, ...) used as ``target`` or
+``offsetDirection`` turn the gaze by
 ``offsetAngle`` degrees (default 20 for a direction-word target); any other
 target is straight ahead. With influence EYES the eyes turn alone (up to
 their limit); with NECK, HEAD, SHOULDER, WAIST or WHOLE the eyes turn up to
@@ -465,7 +468,12 @@ class FaceEngine:
         angle_name = "offsetAngle" if behaviour.param("offsetAngle") is not None else "angle"
         angle = _number_param(behaviour, angle_name, 0.0)
         yaw = pitch = 0.0
-        if target in DIRECTIONS:
+        scene_yaw, scene_pitch = behaviour.param("sceneYaw"), behaviour.param("scenePitch")
+        if scene_yaw is not None and scene_pitch is not None:
+            # The session found the target in its scene (realizer.scene): the
+            # direction from the eyes, degrees, yaw to the left, pitch down.
+            yaw, pitch = float(scene_yaw), float(scene_pitch)
+        elif target in DIRECTIONS:
             dy, dp = DIRECTIONS[target]
             base = DEFAULT_TARGET_ANGLE_DEG if not direction_word else 0.0
             yaw, pitch = dy * base, dp * base

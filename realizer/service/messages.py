@@ -53,6 +53,14 @@ class InterruptRequest(TypedDict):
     character: NotRequired[str]
 
 
+class TargetRequest(TypedDict):
+    """Place or move a named scene target (realizer.scene) while blocks run."""
+
+    type: Literal["target"]
+    name: str
+    position: list[float]  # [x, y, z] metres
+
+
 # -- submitter, server to client (format=json) -------------------------------
 
 
@@ -203,7 +211,7 @@ class ViewOptions:
             raise BadMessage(f"vertices must be none, float32 or int16, not {self.vertices!r}")
 
 
-SubmitterRequest = BmlRequest | InterruptRequest
+SubmitterRequest = BmlRequest | InterruptRequest | TargetRequest
 
 #: Digits of the longest integer a JSON message may hold (Python refuses to
 #: convert more than 4,300 and spends quadratic time getting there).
@@ -287,7 +295,23 @@ def read_submitter_message(text: str) -> SubmitterRequest:
         if character is not None:
             interrupt["character"] = character
         return interrupt
-    raise BadMessage(f"unknown message type {str(kind)[:40]!r}; expected 'bml' or 'interrupt'")
+    if kind == "target":
+        name = data.get("name")
+        position = data.get("position")
+        if not isinstance(name, str) or not name:
+            raise BadMessage("a target message needs the target's name in its 'name' field")
+        if (
+            not isinstance(position, list)
+            or len(position) != 3
+            or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in position)
+        ):
+            raise BadMessage("a target message needs 'position': [x, y, z] in metres")
+        return TargetRequest(
+            type="target", name=_text_field(name, "name"), position=[float(v) for v in position]
+        )
+    raise BadMessage(
+        f"unknown message type {str(kind)[:40]!r}; expected 'bml', 'interrupt' or 'target'"
+    )
 
 
 def read_subscribe_message(text: str) -> SubscribeRequest:

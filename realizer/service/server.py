@@ -701,6 +701,9 @@ class RealizerService:
             )
             joined = result.character if result.character in self.stage.characters else None
             return result.messages, joined
+        if request["type"] == "target":  # a scene target placed or moved (realizer.scene)
+            x, y, z = request["position"]
+            return self.stage.place_target(request["name"], (x, y, z), now), None
         character = request.get("character", default_character)
         return self.stage.interrupt(character, request["block"], now), None
 

@@ -59,6 +59,7 @@ from realizer.face.fapcoding import DEFAULT_FAP_QUANT, FapStreamEncoder, is_intr
 from realizer.face.frame import FapFrame
 from realizer.face.model import Face
 from realizer.feedback import Feedback
+from realizer.scene import Scene, SceneError
 from realizer.service import codec
 from realizer.service.errors import LimitExceeded, PeerError
 from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
@@ -214,6 +215,8 @@ class Stage:
         self.limits = limits
         self.default_character = default_character
         self.characters: dict[str, Character] = {}
+        # The targets every character's gaze can name (realizer.scene).
+        self.scene = Scene()
         self.now = 0.0  # the latest time given to any session, seconds
         # guards the character table and ``now`` (planner threads and the clock)
         self._table = threading.Lock()
@@ -268,8 +271,15 @@ class Stage:
             idle_since=self.now,
             viewer_made=for_viewer,
         )
+        self._join_scene(made)
         self.characters[character_id] = made
         return made
+
+    def _join_scene(self, found: Character) -> None:
+        """The character's eyes become a scene target; its session sees the scene."""
+        self.scene.add_character(found.id)
+        if hasattr(found.session, "scene"):
+            found.session.scene = self.scene
 
     # -- submitting -------------------------------------------------------------
 
@@ -365,6 +375,27 @@ class Stage:
             messages.append(BlockEvent(target, block.id, "rejected", now))
         return SubmitResult(target, block.id, accepted, tuple(messages))
 
+    def place_target(
+        self, name: str, position: tuple[float, float, float], now: float
+    ) -> tuple[Outgoing, ...]:
+        """Add or move a scene target at ``now``; behaviours aimed at it follow.
+
+        A bad name or position is answered with a ``warningFeedback``.
+        """
+        now = self._advance(now)
+        try:
+            self.scene.place(name, position)
+        except SceneError as exc:
+            return tuple(self._warning(self.default_character, "", now, exc.warning_type,
+                                       str(exc.args[0])))  # fmt: skip
+        messages: list[Outgoing] = []
+        for found in self.characters.values():
+            moved = getattr(found.session, "target_moved", None)
+            if moved is not None:
+                moved(name, now)
+                messages.extend(self._route(found, self._take(found)))
+        return tuple(messages)
+
     def interrupt(self, character_id: str, block_id: str, now: float) -> tuple[Outgoing, ...]:
         """Interrupt ``block_id`` of ``character_id`` at ``now`` seconds."""
         now = self._advance(now)
@@ -444,6 +475,7 @@ class Stage:
                 *self._fail_all(found, now, "the character's session failed"),
             ]
             found.session = self.make_session(found.id)
+            self._join_scene(found)
             try:
                 fresh = found.session.frame(now)
             except Exception:
