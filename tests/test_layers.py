@@ -21,7 +21,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("realizer.face",),
     ("realizer.scheduler",),
     ("realizer.engines",),
-    ("realizer.feedback", "realizer.session"),
+    ("realizer.feedback", "realizer.session", "realizer.scene", "realizer.control"),
     ("realizer.service", "realizer.client"),
     ("realizer.commands", "realizer.cli", "realizer.__main__"),
 )
