@@ -260,6 +260,16 @@ class ClusterGateway(RealizerService):
                 bml=text,
                 strict=submitter.strict,
             )
+        elif request["type"] == "target":
+            # Scene targets live in one server's scene (realizer.scene); a
+            # gateway holds no scene to forward them to yet.
+            xml = warning_feedback_xml(
+                "", submitter.default_character, "NO_SUCH_TARGET",
+                "scene targets are not forwarded through a cluster gateway",
+            )  # fmt: skip
+            warning = WireFeedback(submitter.default_character, "warning", "", now, xml)
+            self._dispatch([warning], also=submitter)
+            return
         else:
             character = request.get("character", submitter.default_character)
             if not valid_character_id(character):
