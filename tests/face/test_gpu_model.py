@@ -47,9 +47,9 @@ def test_every_rigid_part_and_table_reaches_the_model(face) -> None:  # type: ig
     assert moved.sum() > 100
 
 
-def test_the_model_message_is_a_few_hundred_kilobytes(face) -> None:  # type: ignore[no-untyped-def]
+def test_the_model_message_is_at_most_a_few_megabytes(face) -> None:  # type: ignore[no-untyped-def]
     fields = model_message_fields(gpu_model_for(face))
     size = sum(len(v) for v in fields.values() if isinstance(v, bytes))
-    assert 10_000 < size < 2_000_000
+    assert 10_000 < size < 4_000_000
     entries = np.frombuffer(fields["entries"], dtype="<f4").reshape(-1, 4)
     assert entries.shape[0] == fields["entryCount"]
