@@ -327,8 +327,9 @@ class RealizerService:
         loop = asyncio.get_running_loop()
         # The first session pays for loading the engines (a few hundred ms);
         # pay it here, before the clock runs, not on the loop when a viewer
-        # of a new character connects.
-        self.stage.make_session(self.stage.default_character)
+        # of a new character connects. (A cluster gateway has no sessions.)
+        if self.runs_clock:
+            self.stage.make_session(self.stage.default_character)
         self._server = await websocket_serve(
             self._handle,
             self.config.host,
