@@ -28,7 +28,6 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "plots": ("matplotlib",),
     "bench": ("trimesh", "psutil"),
     "cluster": ("nats",),
-    "stomp": ("stomp",),
 }
 
 
