@@ -97,9 +97,54 @@ def face_framing(face: Face) -> Any:
     return Framing.of_points(np.asarray(points, dtype=np.float64), margin=0.16)
 
 
-def build_sheet(face: Face, tile: int = 256) -> npt.NDArray[np.uint8]:
+#: Close-up regions: the feature point groups each frames (Tekalp and Ostermann,
+#: figure 2), by the FAP groups shown in it.
+REGIONS: dict[str, tuple[set[int], set[str]]] = {
+    "mouth": ({2, 6, 8}, {"2", "8", "9.15"}),
+    "eyes": ({3, 4}, {"3", "4"}),
+    "cheeks": ({5}, {"5", "8", "9.1", "9.2"}),
+    "nose": ({9}, {"9", "8.1"}),
+    "ears": ({10}, {"10"}),
+}
+
+
+def region_of(fap: int) -> str:
+    """The close-up region a FAP is shown in ("face" for the head's rotations)."""
+    from realizer.face.faps import FAP_TABLE
+
+    group = FAP_TABLE[fap].group
+    return next((name for name, (groups, _) in REGIONS.items() if group in groups), "face")
+
+
+def region_framing(face: Face, region: str) -> Any:
+    """A close-up on ``region`` (:data:`REGIONS`): its feature points with a
+    margin; the whole face for "face" or where the points are missing."""
+    import numpy as np
+
+    from realizer.face.render import Framing
+
+    if region == "face":
+        return face_framing(face)
+    wanted = REGIONS[region][1]
+    points = [
+        p
+        for name, p in face.params.feature_points.items()
+        if name in wanted or name.split(".")[0] in wanted
+    ]
+    if len(points) < 2:
+        return face_framing(face)
+    return Framing.of_points(np.asarray(points, dtype=np.float64), margin=0.25)
+
+
+def build_sheet(
+    face: Face, tile: int = 256, *, close_up: bool = False, profile: bool = False
+) -> npt.NDArray[np.uint8]:
     """The contact sheet as an RGB image: one row per FAP, in two columns,
-    each row: label, neutral, +value, difference, -value, difference."""
+    each row: label, neutral, +value, difference, -value, difference; with
+    ``profile`` also the neutral, +value and -value seen from the left (the
+    right for FAPs of the right side's feature points: the row's view if it
+    is a side view). ``close_up`` frames each row on its FAP's region
+    (:func:`region_of`) instead of the whole face."""
     import numpy as np
     from PIL import Image, ImageDraw
 
@@ -109,7 +154,7 @@ def build_sheet(face: Face, tile: int = 256) -> npt.NDArray[np.uint8]:
 
     entries = load_sheet_entries()
     label_width = 150
-    row_width = label_width + 5 * tile
+    row_width = label_width + (8 if profile else 5) * tile
     columns = 2
     rows_per_column = (len(entries) + columns - 1) // columns
     header = 28
@@ -118,46 +163,69 @@ def build_sheet(face: Face, tile: int = 256) -> npt.NDArray[np.uint8]:
     draw.text(
         (6, 6),
         f"FAP contact sheet of face '{face.name}': neutral | +value | "
-        "difference over blurred neutral (Paul 2010, fig. 4.20) | -value | difference",
+        "difference over blurred neutral (Paul 2010, fig. 4.20) | -value | difference"
+        + (" | profile: neutral | +value | -value" if profile else "")
+        + (" (close-ups of each FAP's region)" if close_up else ""),
         fill=(230, 230, 230),
     )
-    neutrals: dict[tuple[str, float], npt.NDArray[np.uint8]] = {}
-    with FaceRenderer(face, tile, tile, framing=face_framing(face)) as renderer:
+    regions = sorted({region_of(e.fap) if close_up else "face" for e in entries})
+    # renders of the neutral face (or of FAP 3 alone) by region, view and jaw opening
+    neutrals: dict[tuple[str, str, float], npt.NDArray[np.uint8]] = {}
+    for region in regions:
+        framing = region_framing(face, region)
+        with FaceRenderer(face, tile, tile, framing=framing) as renderer:
 
-        def render(values: npt.NDArray[np.float64], view: Any) -> npt.NDArray[np.uint8]:
-            return renderer.render(deform(face, values), view=view)
+            def render(
+                values: npt.NDArray[np.float64], view: Any, region: str = region
+            ) -> npt.NDArray[np.uint8]:
+                only_jaw = not np.any(np.delete(values, 2))
+                key = (region, str(view), float(values[2])) if only_jaw else None
+                if key is not None and key in neutrals:
+                    return neutrals[key]
+                image = renderer.render(deform(face, values), view=view)
+                if key is not None:
+                    neutrals[key] = image
+                return image
 
-        for k, entry in enumerate(entries):
-            base = np.zeros(68)
-            base[2] = entry.jaw_open
-            key = (entry.view, entry.jaw_open)
-            if key not in neutrals:
-                neutrals[key] = render(base, entry.view)
-            neutral = neutrals[key]
-            info = FAP_TABLE[entry.fap]
-            tiles = [neutral]
-            for sign in (1.0, -1.0):
-                if sign < 0 and info.unidirectional:
-                    tiles += [np.zeros_like(neutral)] * 2
+            for k, entry in enumerate(entries):
+                if close_up and region_of(entry.fap) != region:
                     continue
-                values = base.copy()
-                values[entry.fap - 1] += sign * entry.value
-                pose = render(values, entry.view)
-                tiles += [pose, difference_over_underlay(neutral, pose)]
-            x0 = (k // rows_per_column) * row_width
-            y0 = header + (k % rows_per_column) * tile
-            for t, image in enumerate(tiles):
-                sheet.paste(Image.fromarray(image), (x0 + label_width + t * tile, y0))
-            sign_text = "+" if info.unidirectional else "+/-"
-            lines = [
-                f"{entry.fap} {info.name}",
-                f"{sign_text}{entry.value:g} {info.unit}",
-                f"{info.direction}" + (f", {entry.view} view" if entry.view != "front" else ""),
-            ]
-            if entry.jaw_open:
-                lines.append(f"jaw open {entry.jaw_open:g}")
-            for i, line in enumerate(lines):
-                draw.text((x0 + 6, y0 + 8 + 16 * i), line, fill=(230, 230, 230))
+                base = np.zeros(68)
+                base[2] = entry.jaw_open
+                neutral = render(base, entry.view)
+                info = FAP_TABLE[entry.fap]
+                side = entry.view if entry.view != "front" else "left"
+                tiles = [neutral]
+                side_tiles = [render(base, side)]
+                for sign in (1.0, -1.0):
+                    if sign < 0 and info.unidirectional:
+                        tiles += [np.zeros_like(neutral)] * 2
+                        side_tiles.append(np.zeros_like(neutral))
+                        continue
+                    values = base.copy()
+                    values[entry.fap - 1] += sign * entry.value
+                    pose = render(values, entry.view)
+                    tiles += [pose, difference_over_underlay(neutral, pose)]
+                    if profile:
+                        side_tiles.append(render(values, side))
+                if profile:
+                    tiles += side_tiles
+                x0 = (k // rows_per_column) * row_width
+                y0 = header + (k % rows_per_column) * tile
+                for t, image in enumerate(tiles):
+                    sheet.paste(Image.fromarray(image), (x0 + label_width + t * tile, y0))
+                sign_text = "+" if info.unidirectional else "+/-"
+                lines = [
+                    f"{entry.fap} {info.name}",
+                    f"{sign_text}{entry.value:g} {info.unit}",
+                    f"{info.direction}" + (f", {entry.view} view" if entry.view != "front" else ""),
+                ]
+                if entry.jaw_open:
+                    lines.append(f"jaw open {entry.jaw_open:g}")
+                if close_up:
+                    lines.append(f"close-up: {region}")
+                for i, line in enumerate(lines):
+                    draw.text((x0 + 6, y0 + 8 + 16 * i), line, fill=(230, 230, 230))
     return np.asarray(sheet)
 
 
@@ -176,7 +244,7 @@ def run(args: argparse.Namespace) -> int:
 
         face = load_default_face()
     try:
-        image = build_sheet(face, tile=args.tile)
+        image = build_sheet(face, tile=args.tile, close_up=args.close_up, profile=args.profile)
     except RenderUnavailableError as error:
         print(f"realizer fap-sheet: {error}")
         return 1
@@ -198,5 +266,15 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--tile", type=int, default=256, help="tile size in pixels (256: lid and lip defects show)"
+    )
+    parser.add_argument(
+        "--close-up",
+        action="store_true",
+        help="frame each FAP on its region (mouth, eyes and brows, cheeks, nose, ears)",
+    )
+    parser.add_argument(
+        "--profile",
+        action="store_true",
+        help="add the neutral, +value and -value seen from the side (z motion shows)",
     )
     parser.set_defaults(run=run)

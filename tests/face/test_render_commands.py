@@ -111,3 +111,29 @@ def test_realizer_face_reads_a_frame_of_a_fap_file(tmp_path: Path) -> None:
     assert main(["face", "--faps", "3=500 31=300", *args, str(from_faps)]) == 0
     assert np.array_equal(np.asarray(Image.open(from_file)), np.asarray(Image.open(from_faps)))
     assert main(["face", str(tmp_path / "pose.fap"), "--frame", "2", *args, str(from_file)]) == 2
+
+
+def test_close_ups_frame_each_fap_on_its_region() -> None:
+    from realizer.commands.fap_sheet import face_framing, region_framing, region_of
+    from realizer.face.default import load_default_face
+
+    assert [region_of(f) for f in (3, 8, 19, 31, 39, 61, 65, 48)] == [
+        "mouth", "mouth", "eyes", "eyes", "cheeks", "nose", "ears", "face",
+    ]  # fmt: skip
+    face = load_default_face()
+    whole = face_framing(face).height
+    for region in ("mouth", "eyes", "cheeks", "nose"):
+        assert region_framing(face, region).height < 0.75 * whole, region
+
+
+@pytest.mark.opengl
+def test_fap_sheet_close_ups_with_profiles(tmp_path: Path) -> None:
+    opengl_or_skip()
+    out = tmp_path / "close.png"
+    assert main(["fap-sheet", "--tile", "32", "--close-up", "--profile", "-o", str(out)]) == 0
+    sheet = np.asarray(Image.open(out).convert("RGB")).astype(np.int32)
+    rows = (len(load_sheet_entries()) + 1) // 2
+    assert sheet.shape == (28 + rows * 32, 2 * (150 + 8 * 32), 3)
+    # FAP 3 (first row): the profile of the open jaw differs from the profile at rest
+    side = [sheet[28:60, 150 + t * 32 : 150 + (t + 1) * 32] for t in (5, 6)]
+    assert np.abs(side[1] - side[0]).mean() > 1.0
