@@ -109,15 +109,25 @@ REGIONS: dict[str, tuple[set[int], set[str]]] = {
 
 
 def region_of(fap: int) -> str:
-    """The close-up region a FAP is shown in ("face" for the head's rotations)."""
+    """The close-up region a FAP is shown in: one of :data:`REGIONS`, "left
+    eye" or "right eye" for one side's lid, eyeball or brow, "face" for the
+    head's rotations."""
     from realizer.face.faps import FAP_TABLE
 
-    group = FAP_TABLE[fap].group
-    return next((name for name, (groups, _) in REGIONS.items() if group in groups), "face")
+    info = FAP_TABLE[fap]
+    region = next((name for name, (groups, _) in REGIONS.items() if info.group in groups), "face")
+    if region == "eyes":
+        # one eye and its brow: odd feature point numbers are on the left
+        sides = {int(p.split(".")[1]) % 2 for p in info.feature_points}
+        if sides == {1} or (not sides and "_l_" in info.name):
+            return "left eye"
+        if sides == {0} or (not sides and "_r_" in info.name):
+            return "right eye"
+    return region
 
 
 def region_framing(face: Face, region: str) -> Any:
-    """A close-up on ``region`` (:data:`REGIONS`): its feature points with a
+    """A close-up on ``region`` (:func:`region_of`): its feature points with a
     margin; the whole face for "face" or where the points are missing."""
     import numpy as np
 
@@ -125,11 +135,13 @@ def region_framing(face: Face, region: str) -> Any:
 
     if region == "face":
         return face_framing(face)
-    wanted = REGIONS[region][1]
+    side = {"left eye": 1, "right eye": 0}.get(region)
+    wanted = REGIONS["eyes" if side is not None else region][1]
     points = [
         p
         for name, p in face.params.feature_points.items()
-        if name in wanted or name.split(".")[0] in wanted
+        if (name in wanted or name.split(".")[0] in wanted)
+        and (side is None or int(name.split(".")[1]) % 2 == side)
     ]
     if len(points) < 2:
         return face_framing(face)

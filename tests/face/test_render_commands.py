@@ -117,13 +117,15 @@ def test_close_ups_frame_each_fap_on_its_region() -> None:
     from realizer.commands.fap_sheet import face_framing, region_framing, region_of
     from realizer.face.default import load_default_face
 
-    assert [region_of(f) for f in (3, 8, 19, 31, 39, 61, 65, 48)] == [
-        "mouth", "mouth", "eyes", "eyes", "cheeks", "nose", "ears", "face",
+    assert [region_of(f) for f in (3, 8, 19, 32, 23, 39, 61, 65, 48)] == [
+        "mouth", "mouth", "left eye", "right eye", "left eye", "cheeks", "nose", "ears", "face",
     ]  # fmt: skip
     face = load_default_face()
     whole = face_framing(face).height
-    for region in ("mouth", "eyes", "cheeks", "nose"):
+    for region in ("mouth", "cheeks", "nose"):
         assert region_framing(face, region).height < 0.75 * whole, region
+    for region in ("left eye", "right eye"):
+        assert region_framing(face, region).height < 0.5 * whole, region
 
 
 @pytest.mark.opengl
