@@ -69,3 +69,18 @@ def test_viseme_u_rounds_the_lips(face: Face) -> None:
     assert open_width < 3.5 * heights.max(), (
         f"a slot {open_width * 1000:.1f} mm wide, {heights.max() * 1000:.1f} mm high"
     )
+
+
+@pytest.mark.parametrize(("number", "opens"), [(2, False), (3, False), (4, True), (6, True)])
+def test_fap2_expressions_part_the_lips_only_where_they_should(
+    face: Face, number: int, opens: bool
+) -> None:
+    """Sadness and anger (pressed lips) keep the mouth closed; fear and
+    surprise drop the jaw (Tekalp and Ostermann, Table 4's descriptions)."""
+    from realizer.face.convert.visemes import expression_faps
+
+    heights, _ = opening(face, deform(face, expression_faps(number, FAP12_MAX).values))
+    if opens:
+        assert heights.max() > 0.003, f"expression {number} opens {heights.max() * 1000:.1f} mm"
+    else:
+        assert heights.max() < 0.0005, f"expression {number} opens {heights.max() * 1000:.1f} mm"
