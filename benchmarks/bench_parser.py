@@ -9,18 +9,30 @@ throughput to lxml's (goal: at least 1/3).
 It also prints a floor: lxml's parse plus a Python loop that merely touches
 every element's tag, attributes, text, tail and line, which any pure-Python
 tree built from lxml must pay; its ratio bounds what the parser can reach.
+
+And, when the Java reference parser of the BML community (saiba/OpenBMLParser)
+is built (``bash scripts/build_openbml.sh``; found in ``.cache/openbml`` or
+where ``REALIZER_OPENBML`` names) and ``java`` runs, the same documents
+through ``BehaviourBlock.readXML`` + ``toXMLString`` after JIT warm-up
+(benchmarks/java/OpenBmlBench.java), in the same run, on the documents both
+parsers accept; goal: the ratio realizer/Java at least 1. Without a built
+reference that column is skipped with the reason.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 from lxml import etree
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _timing import best_of, figure
+from _timing import best_of, figure, skipped
 
 from realizer.bml_parser import BML_NS, parse_bml, serialise
 from realizer.bml_parser.reader import _BYTES_PARSER
@@ -29,6 +41,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def corpus() -> list[bytes]:
+    return [data for _, data in corpus_files()]
+
+
+def corpus_files() -> list[tuple[Path, bytes]]:
+    """The examples and ``REALIZER_BML_CORPUS``'s documents that the parser accepts."""
     paths = sorted((ROOT / "examples" / "bml").glob("*.xml"))
     # more BML from elsewhere (for example a conformance corpus): a folder of
     # .xml files named by REALIZER_BML_CORPUS
@@ -42,8 +59,32 @@ def corpus() -> list[bytes]:
             parse_bml(data)
         except Exception:
             continue  # the deliberately broken ones
-        documents.append(data)
+        documents.append((path, data))
     return documents
+
+
+def java_classpath() -> tuple[str | None, str]:
+    """The reference parser's classpath, or None and why it is not available."""
+    where = Path(os.environ.get("REALIZER_OPENBML", ROOT / ".cache" / "openbml"))
+    listing = where / "classpath"
+    if not listing.is_file():
+        return None, f"no built reference parser in {where} (bash scripts/build_openbml.sh)"
+    if shutil.which("java") is None:
+        return None, "no java on PATH"
+    return listing.read_text().strip(), ""
+
+
+def java_pass(classpath: str, paths: list[Path], seconds: float) -> dict[str, object]:
+    """Run the Java harness on ``paths``: its accepted indices and best seconds per pass."""
+    done = subprocess.run(
+        ["java", "-cp", classpath, "OpenBmlBench", str(seconds), *map(str, paths)],
+        capture_output=True,
+        text=True,
+        timeout=120 + 4 * seconds,
+        check=True,
+    )
+    result: dict[str, object] = json.loads(done.stdout.strip().splitlines()[-1])
+    return result
 
 
 def big_block(behaviours: int) -> bytes:
@@ -68,7 +109,11 @@ def big_block(behaviours: int) -> bytes:
     return "\n".join(lines).encode()
 
 
-def measure(name: str, documents: list[bytes], repeats: int) -> None:
+def measure(
+    name: str, documents: list[bytes], repeats: int, java_seconds: float | None = None
+) -> None:
+    """Realizer, lxml and floor on ``documents``; ``java_seconds``: the Java
+    reference's best seconds per pass over the same documents, when measured."""
     size = sum(len(d) for d in documents)
 
     def ours() -> None:
@@ -99,12 +144,38 @@ def measure(name: str, documents: list[bytes], repeats: int) -> None:
     figure(f"{name}: lxml parse+tostring", len(documents) / t_lxml, "docs/s")
     figure(f"{name}: ratio realizer/lxml", t_lxml / t_ours, "x", goal=1 / 3, higher_is_better=True)
     figure(f"{name}: ratio floor/lxml", t_lxml / t_floor, "x")
+    if java_seconds is not None:
+        figure(f"{name}: Java reference readXML+toXMLString", len(documents) / java_seconds,
+               "docs/s")  # fmt: skip
+        figure(f"{name}: ratio realizer/Java", java_seconds / t_ours, "x", goal=1.0,
+               higher_is_better=True)  # fmt: skip
 
 
 def run(quick: bool = False) -> None:
     repeats = 3 if quick else 7
-    measure("corpus + examples", corpus(), repeats)
-    measure("one block of 5,000 behaviours", [big_block(5000)], repeats)
+    files = corpus_files()
+    big = big_block(5000)
+    classpath, reason = java_classpath()
+    if classpath is None:
+        skipped("ratio realizer/Java", reason)
+        measure("corpus + examples", [data for _, data in files], repeats)
+        measure("one block of 5,000 behaviours", [big], repeats)
+        return
+    seconds = 2.0 if quick else 6.0
+    with tempfile.TemporaryDirectory() as folder:
+        big_path = Path(folder) / "big.xml"
+        big_path.write_bytes(big)
+        java = java_pass(classpath, [path for path, _ in files], seconds)
+        java_big = java_pass(classpath, [big_path], seconds)
+    accepted = set(java["accepted"])  # type: ignore[arg-type]
+    both = [data for index, (_, data) in enumerate(files) if index in accepted]
+    print(
+        f"the Java reference refuses {len(files) - len(both)} of the {len(files)} documents "
+        "the realizer accepts; both are timed on the other ones"
+    )
+    measure("corpus + examples", both, repeats, float(java["seconds_per_pass"]))  # type: ignore[arg-type]
+    measure("one block of 5,000 behaviours", [big], repeats,
+            float(java_big["seconds_per_pass"]))  # type: ignore[arg-type]  # fmt: skip
 
 
 if __name__ == "__main__":
