@@ -8,7 +8,7 @@ of structure the scheduler has to handle (Paul 2010, section 3.3):
   cannot place and the QP solves by sharing the stretch;
 * chains: every unit's ring starts at the end of the previous unit, a nod's
   stroke is tied to the ring's last relax, a beat gesture starts with the nod;
-* an active inequality: a second nod starts with the beat but must end at
+* an active inequality: a head shake starts with the beat but must end at
   least 0.5 s after the beat ends (``<after>``), which forces it to stretch,
   so the active-set method has work to do.
 
@@ -71,8 +71,9 @@ def generated_block(behaviours: int, orderings: bool = True) -> bytes:
             lines.append(f'  <head id="b{i}" lexeme="NOD" stroke="b{i - 1}:relax"/>')
         elif role == 4:
             lines.append(f'  <gesture id="b{i}" lexeme="BEAT" start="b{i - 1}:start"/>')
-        else:  # a short nod that must outlast the beat: an active <after>
-            lines.append(f'  <head id="b{i}" lexeme="NOD" start="b{i - 1}:start"/>')
+        else:  # a short shake that must outlast the beat: an active <after>
+            # a shake (head yaw) beside the nod (head pitch): no channel conflict
+            lines.append(f'  <head id="b{i}" lexeme="SHAKE" start="b{i - 1}:start"/>')
             if orderings:
                 constraints.append(
                     f'  <constraint id="c{i}"><after ref="b{i - 1}:end+0.5">'
