@@ -7,7 +7,13 @@ terminal shows.
 
 from __future__ import annotations
 
+import argparse
+import os
 import re
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from realizer.face.model import Face
 
 _ROLE = re.compile(r":(?:mod|class|func|meth|data|attr|exc|obj):`~?([^`<]+?)`")
 _LITERAL = re.compile(r"``([^`]+?)``")
@@ -45,3 +51,29 @@ def error_line(command: str, error: BaseException, path: object = None) -> str:
     if path is not None:
         return f"{path}: error: {message}"
     return f"realizer {command}: error: {message}"
+
+
+def load_face_option(path: str | None) -> Face:
+    """The face a ``--face`` option names (STEM, STEM.npz or STEM.xml), or the
+    built-in default face when it names none. Imports the face package only
+    when called, so ``--help`` stays light."""
+    if path:
+        from realizer.face.paramfile import load_face
+
+        return load_face(path)
+    from realizer.face.default import load_default_face
+
+    return load_default_face()
+
+
+def add_idle_options(parser: argparse.ArgumentParser) -> None:
+    """``--idle/--no-idle`` and ``--seed``: the idle motion of the faces a
+    command drives (on unless ``REALIZER_IDLE=0``)."""
+    parser.add_argument(
+        "--idle",
+        action=argparse.BooleanOptionalAction,
+        default=os.environ.get("REALIZER_IDLE", "1") != "0",
+        help="keep faces alive: blinks, saccades, breathing, head motion "
+        "(default on; REALIZER_IDLE=0 turns it off)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the idle motion (0)")

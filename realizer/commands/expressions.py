@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from realizer.commands import plain_text
+from realizer.commands import load_face_option, plain_text
 
 if TYPE_CHECKING:
     import numpy as np
@@ -144,14 +144,7 @@ def run(args: argparse.Namespace) -> int:
     require("render", "realizer expressions")
     from realizer.face.render import RenderUnavailableError, save_png
 
-    if args.face:
-        from realizer.face.paramfile import load_face
-
-        face = load_face(args.face)
-    else:
-        from realizer.face.default import load_default_face
-
-        face = load_default_face()
+    face = load_face_option(args.face)
     try:
         image, _ = build_sheet(face, tile=args.tile)
     except RenderUnavailableError as error:

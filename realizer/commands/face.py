@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from realizer.commands import error_line
+from realizer.commands import error_line, load_face_option
 
 if TYPE_CHECKING:
     import numpy as np
@@ -72,14 +72,7 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, OSError, RealizerError) as error:
         print(error_line("face", error), file=sys.stderr)
         return 2
-    if args.face:
-        from realizer.face.paramfile import load_face
-
-        face = load_face(args.face)
-    else:
-        from realizer.face.default import load_default_face
-
-        face = load_default_face()
+    face = load_face_option(args.face)
     try:
         with FaceRenderer(face, args.size, args.size) as renderer:
             image = renderer.render(deform(face, values), view=args.view)

@@ -19,7 +19,7 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from realizer.commands import plain_text
+from realizer.commands import load_face_option, plain_text
 
 if TYPE_CHECKING:
     import numpy as np
@@ -247,14 +247,7 @@ def run(args: argparse.Namespace) -> int:
     require("render", "realizer fap-sheet")
     from realizer.face.render import RenderUnavailableError, save_png
 
-    if args.face:
-        from realizer.face.paramfile import load_face
-
-        face = load_face(args.face)
-    else:
-        from realizer.face.default import load_default_face
-
-        face = load_default_face()
+    face = load_face_option(args.face)
     try:
         image = build_sheet(face, tile=args.tile, close_up=args.close_up, profile=args.profile)
     except RenderUnavailableError as error:

@@ -19,14 +19,13 @@ frame rate.
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
-from realizer.commands import error_line, plain_text
+from realizer.commands import add_idle_options, error_line, plain_text
 
 VIDEO_SUFFIXES = (".mp4", ".mkv", ".webm", ".mov")
 
@@ -51,14 +50,7 @@ def register(subparsers: Any) -> None:
         "--max-duration", type=float, default=120.0, help="stop after this many seconds (120)"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument(
-        "--idle",
-        action=argparse.BooleanOptionalAction,
-        default=os.environ.get("REALIZER_IDLE", "1") != "0",
-        help="keep faces alive: blinks, saccades, breathing, head motion "
-        "(default on; REALIZER_IDLE=0 turns it off)",
-    )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the idle motion (0)")
+    add_idle_options(parser)
     parser.set_defaults(run=run)
 
 

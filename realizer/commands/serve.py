@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from realizer.commands import error_line, plain_text
+from realizer.commands import add_idle_options, error_line, plain_text
 
 
 def register(subparsers: Any) -> None:
@@ -57,14 +57,7 @@ def register(subparsers: Any) -> None:
         metavar="NAME=VALUE",
         help="override a named limit, e.g. --limit viewers=200 (see protocols/README.md)",
     )
-    parser.add_argument(
-        "--idle",
-        action=argparse.BooleanOptionalAction,
-        default=os.environ.get("REALIZER_IDLE", "1") != "0",
-        help="keep faces alive: blinks, saccades, breathing, head motion "
-        "(default on; REALIZER_IDLE=0 turns it off)",
-    )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the idle motion (0)")
+    add_idle_options(parser)
     parser.add_argument(
         "--tts", choices=("espeak", "piper"), default="espeak", help="speech backend (espeak)"
     )
