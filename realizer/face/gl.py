@@ -15,6 +15,7 @@ This module imports OpenGL only inside the functions that make a context.
 from __future__ import annotations
 
 import ctypes
+from abc import ABC, abstractmethod
 from typing import Any
 
 from realizer.errors import RealizerError
@@ -26,14 +27,16 @@ class GLContextError(RealizerError):
     """No OpenGL 3.3 core context can be made with this back end."""
 
 
-class GLContext:
+class GLContext(ABC):
     """A current-able OpenGL context. :meth:`make_current` before any GL call."""
 
-    def make_current(self) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abstractmethod
+    def make_current(self) -> None:
+        """Make this context current on the calling thread."""
 
-    def release(self) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abstractmethod
+    def release(self) -> None:
+        """Free the context and its buffers."""
 
 
 class _OSMesaContext(GLContext):

@@ -49,6 +49,7 @@ from __future__ import annotations
 import asyncio
 import inspect
 import json
+from abc import ABC, abstractmethod
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from dataclasses import dataclass
 from types import TracebackType
@@ -551,7 +552,7 @@ async def _async_open(uri: str) -> AsyncConnection:
         raise translated from None
 
 
-class _AsyncConnected:
+class _AsyncConnected(ABC):
     connection: AsyncConnection
 
     async def __aenter__(self) -> Self:
@@ -563,8 +564,9 @@ class _AsyncConnected:
     ) -> None:
         await self.close()
 
+    @abstractmethod
     async def open(self) -> None:
-        raise NotImplementedError
+        """Connect, and take the endpoint's first message(s)."""
 
     async def close(self) -> None:
         if hasattr(self, "connection"):
