@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from realizer.commands import load_face_option, plain_text
+from realizer.commands import plain_text
 
 if TYPE_CHECKING:
     import numpy as np
@@ -139,20 +139,11 @@ def build_sheet(face: Face, tile: int = 192) -> tuple[npt.NDArray[np.uint8], lis
 
 
 def run(args: argparse.Namespace) -> int:
-    from realizer.extras import require
+    from realizer.commands.fap_sheet import write_sheet
 
-    require("render", "realizer expressions")
-    from realizer.face.render import RenderUnavailableError, save_png
-
-    face = load_face_option(args.face)
-    try:
-        image, _ = build_sheet(face, tile=args.tile)
-    except RenderUnavailableError as error:
-        print(f"realizer expressions: {error}")
-        return 1
-    save_png(image, args.output)
-    print(f"wrote {args.output} ({image.shape[1]}x{image.shape[0]})")
-    return 0
+    return write_sheet(
+        "expressions", args.face, args.output, lambda face: build_sheet(face, tile=args.tile)[0]
+    )
 
 
 def register(subparsers: Any) -> None:

@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING, Any, Literal
 from realizer.commands import load_face_option, plain_text
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     import numpy as np
     import numpy.typing as npt
 
@@ -241,21 +243,36 @@ def build_sheet(
     return np.asarray(sheet)
 
 
-def run(args: argparse.Namespace) -> int:
+def write_sheet(
+    command: str, face_option: str | None, output: Path, build: Callable[[Face], Any]
+) -> int:
+    """What the sheet commands share: load the ``--face``, ``build`` the sheet
+    image on it, write it as a PNG and say so; 1 when no OpenGL is at hand."""
     from realizer.extras import require
 
-    require("render", "realizer fap-sheet")
+    require("render", f"realizer {command}")
     from realizer.face.render import RenderUnavailableError, save_png
 
-    face = load_face_option(args.face)
+    face = load_face_option(face_option)
     try:
-        image = build_sheet(face, tile=args.tile, close_up=args.close_up, profile=args.profile)
+        image = build(face)
     except RenderUnavailableError as error:
-        print(f"realizer fap-sheet: {error}")
+        print(f"realizer {command}: {error}")
         return 1
-    save_png(image, args.output)
-    print(f"wrote {args.output} ({image.shape[1]}x{image.shape[0]})")
+    save_png(image, output)
+    print(f"wrote {output} ({image.shape[1]}x{image.shape[0]})")
     return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    return write_sheet(
+        "fap-sheet",
+        args.face,
+        args.output,
+        lambda face: build_sheet(
+            face, tile=args.tile, close_up=args.close_up, profile=args.profile
+        ),
+    )
 
 
 def register(subparsers: Any) -> None:
