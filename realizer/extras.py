@@ -28,6 +28,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "plots": ("matplotlib",),
     "bench": ("trimesh", "psutil"),
     "cluster": ("nats",),
+    "stomp": ("stomp",),
 }
 
 

@@ -13,7 +13,7 @@ cd "$(dirname "$0")/.."
 # video output, eSpeak NG (library and voices) for speech, Chromium and its
 # driver for the browser viewer's end-to-end test, Node and its ws package for
 # the JavaScript client's tests, nats-server for the cluster's tests (realizer
-# worker/gateway).
+# worker/gateway), activemq (and its Java) for the STOMP bridge's tests.
 APT_PACKAGES=(
     libosmesa6 libgl1 libegl1 libgl1-mesa-dri libglu1-mesa
     ffmpeg
@@ -22,6 +22,7 @@ APT_PACKAGES=(
     npm
     nodejs node-ws
     nats-server
+    activemq
 )
 
 if [ "${REALIZER_SKIP_APT:-0}" != "1" ] && command -v apt-get >/dev/null 2>&1; then

@@ -57,6 +57,23 @@ def register(subparsers: Any) -> None:
         metavar="NAME=VALUE",
         help="override a named limit, e.g. --limit viewers=200 (see protocols/README.md)",
     )
+    parser.add_argument(
+        "--stomp",
+        metavar="URL",
+        help="also take BML from an ActiveMQ/STOMP broker, e.g. stomp://127.0.0.1:61613 "
+        "(login in $REALIZER_STOMP_LOGIN and $REALIZER_STOMP_PASSCODE; protocols/stomp.md)",
+    )
+    parser.add_argument(
+        "--stomp-layout",
+        choices=("asap", "greta", "vhmsg"),
+        default="asap",
+        help="topic names and message layout: AsapRealizer's (default), Greta's, or the "
+        "Virtual Human messaging SmartBody uses",
+    )
+    parser.add_argument("--stomp-bml-topic", metavar="DEST", help="BML destination (/topic/...)")
+    parser.add_argument(
+        "--stomp-feedback-topic", metavar="DEST", help="feedback destination (/topic/...)"
+    )
     add_idle_options(parser)
     parser.add_argument(
         "--tts", choices=("espeak", "piper"), default="espeak", help="speech backend (espeak)"
@@ -122,6 +139,31 @@ def with_avatar(assets: Any, path: str) -> Any:
     return replace(assets, avatar=data, avatar_missing=report.missing)
 
 
+def stomp_bridge(args: argparse.Namespace) -> Any:
+    """The STOMP bridge of ``--stomp`` (needs the ``stomp`` extra); the
+    broker's login comes from the environment only."""
+    from realizer.extras import require
+
+    require("stomp", "realizer serve --stomp")
+    from realizer.service.stomp import (
+        LOGIN_VARIABLE,
+        PASSCODE_VARIABLE,
+        StompBridge,
+        StompConfig,
+    )
+
+    return StompBridge(
+        StompConfig(
+            args.stomp,
+            layout=args.stomp_layout,
+            bml_topic=args.stomp_bml_topic,
+            feedback_topic=args.stomp_feedback_topic,
+            login=os.environ.get(LOGIN_VARIABLE) or None,
+            passcode=os.environ.get(PASSCODE_VARIABLE) or None,
+        )
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -177,6 +219,7 @@ def run(args: argparse.Namespace) -> int:
         assets = face_assets(face)
         if args.avatar:
             assets = with_avatar(assets, args.avatar)
+        attachments = [stomp_bridge(args)] if args.stomp else []
     except (RealizerError, ValueError, OSError, ImportError) as exc:
         print(error_line("serve", exc), file=sys.stderr)
         return 2
@@ -191,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        return serve_until_stopped(config, stage, assets, ready=ready)
+        return serve_until_stopped(config, stage, assets, ready=ready, attachments=attachments)
     except OSError as exc:  # e.g. the port is in use
         print(error_line("serve", exc), file=sys.stderr)
         return 2

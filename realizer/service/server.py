@@ -32,11 +32,11 @@ import signal
 import sys
 import time
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from importlib import resources
-from typing import Any, ClassVar, cast
+from typing import Any, ClassVar, Protocol, cast
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
@@ -1021,23 +1021,41 @@ class _StaticFiles:
         return self._files.get(path)
 
 
+class Attachment(Protocol):
+    """Something that runs beside a service, such as the STOMP bridge
+    (realizer.service.stomp): started after the service, stopped after its
+    shutdown sequence (so the feedback of the blocks it ends still goes out)."""
+
+    async def start(self, service: RealizerService) -> None: ...
+
+    async def stop(self) -> None: ...
+
+
 async def run_service(
     config: ServiceConfig,
     stage: Stage,
     assets: FaceAssets,
     *,
     ready: Callable[[RealizerService], None] | None = None,
+    attachments: Sequence[Attachment] = (),
 ) -> int:
     """Serve until SIGINT or SIGTERM, then shut down cleanly; returns 0."""
-    return await run_until_stopped(RealizerService(config, stage, assets), ready=ready)
+    service = RealizerService(config, stage, assets)
+    return await run_until_stopped(service, ready=ready, attachments=attachments)
 
 
 async def run_until_stopped(
-    service: RealizerService, *, ready: Callable[[RealizerService], None] | None = None
+    service: RealizerService,
+    *,
+    ready: Callable[[RealizerService], None] | None = None,
+    attachments: Sequence[Attachment] = (),
 ) -> int:
-    """Start ``service`` (or a cluster worker or gateway), serve until SIGINT
-    or SIGTERM, then run its shutdown sequence; returns 0."""
+    """Start ``service`` (or a cluster worker or gateway) and its
+    ``attachments``, serve until SIGINT or SIGTERM, then run its shutdown
+    sequence and stop them; returns 0."""
     await service.start()
+    for attachment in attachments:
+        await attachment.start(service)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -1050,6 +1068,8 @@ async def run_until_stopped(
         for signum in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(signum)
         await service.shutdown()
+        for attachment in attachments:
+            await attachment.stop()
     return 0
 
 
@@ -1059,10 +1079,11 @@ def serve_until_stopped(
     assets: FaceAssets,
     *,
     ready: Callable[[RealizerService], None] | None = None,
+    attachments: Sequence[Attachment] = (),
 ) -> int:
     """Run the service in a new event loop until SIGINT or SIGTERM; returns
     the exit status (0). The blocking entry point of ``realizer serve``."""
-    return asyncio.run(run_service(config, stage, assets, ready=ready))
+    return asyncio.run(run_service(config, stage, assets, ready=ready, attachments=attachments))
 
 
 def run_until_stopped_blocking(

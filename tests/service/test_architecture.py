@@ -33,4 +33,15 @@ def test_nothing_outside_the_service_package_imports_asyncio_or_websockets() -> 
 def test_within_the_service_only_the_server_and_the_client_do_io() -> None:
     service = PACKAGE / "service"
     doing_io = {path.name for path in service.glob("*.py") if imported_roots(path) & IO_MODULES}
-    assert doing_io == {"server.py", "client.py"}
+    # the transports of the asyncio shell: the server, its client, and the
+    # STOMP bridge that attaches to the server (ARCHITECTURE.md, service/)
+    assert doing_io == {"server.py", "client.py", "stomp.py"}
+
+
+def test_only_the_stomp_bridge_imports_the_stomp_client() -> None:
+    users = {
+        str(path.relative_to(PACKAGE))
+        for path in PACKAGE.rglob("*.py")
+        if "stomp" in imported_roots(path)
+    }
+    assert users == {"service/stomp.py"}
