@@ -55,6 +55,7 @@ import argparse
 import dataclasses
 import gzip
 import io
+import itertools
 import subprocess
 import sys
 import zipfile
@@ -810,6 +811,121 @@ def arc_slopes(
     return [points[k + 1] - points[k] for k in range(steps)]
 
 
+#: Lip midpoint tables (lip_field): the band along a contour that takes the
+#: FAP's profile, and how far from its feature point the skin moves at all.
+LIP_BAND_M = 0.0026
+LIP_REACH_M = 0.035
+#: ... and the least share of the profile a vertex of that band takes.
+LIP_BAND_FLOOR = 0.7
+#: The profile reaches 0 this share of the way from the midline to the corner.
+LIP_CORNER_SHARE = 0.85
+
+
+def lip_profile(x: FloatArray, centre: float, corner: float) -> FloatArray:
+    """The share of a lip FAP's motion along the mouth (x): 1 at the FAP's
+    feature point (x = ``centre``), falling as a raised cosine to 0 at the
+    lip corner on its side (``corner`` > 0 is the corner's |x|) and, for a
+    point off the midline, at its mirror point on the other side."""
+    side = 1.0 if centre >= 0 else -1.0
+    s = side * x
+    c = abs(centre)
+    out = np.zeros_like(x)
+    if c < 1e-6:
+        inside = np.abs(x) < corner
+        out[inside] = np.cos(0.5 * np.pi * x[inside] / corner) ** 2
+        return out
+    outer = (s >= c) & (s < corner)
+    out[outer] = np.cos(0.5 * np.pi * (s[outer] - c) / (corner - c)) ** 2
+    inner = (s < c) & (s > -c)
+    out[inner] = np.cos(0.5 * np.pi * (c - s[inner]) / (2 * c)) ** 2
+    return out
+
+
+def harmonic_fill(
+    v: FloatArray,
+    triangles: IntArray,
+    fixed: IntArray,
+    values: FloatArray,
+    free: IntArray,
+) -> FloatArray:
+    """A function on the vertices, ``values`` on ``fixed`` and harmonic (the
+    cotangent Laplacian's solution) on ``free``; 0 everywhere else."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.linalg import spsolve
+
+    n = len(v)
+    rows, cols, weights = [], [], []
+    for k in range(3):
+        i, j, o = triangles[:, k], triangles[:, (k + 1) % 3], triangles[:, (k + 2) % 3]
+        a, b = v[i] - v[o], v[j] - v[o]
+        cot = np.sum(a * b, axis=1) / np.maximum(np.linalg.norm(np.cross(a, b), axis=1), 1e-12)
+        w = np.maximum(0.5 * cot, 1e-3)
+        rows += [i, j]
+        cols += [j, i]
+        weights += [w, w]
+    adjacency = coo_matrix(
+        (np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
+    ).tocsr()
+    degree = np.asarray(adjacency.sum(axis=1)).ravel()
+    known = np.zeros(n)
+    known[fixed] = values
+    a_ff = -adjacency[free][:, free]
+    a_ff = a_ff + coo_matrix((degree[free], (range(len(free)), range(len(free))))).tocsr()
+    rhs = adjacency[free] @ known
+    out = known.copy()
+    out[free] = spsolve(a_ff.tocsc(), rhs)
+    return out
+
+
+def lip_field(
+    v: FloatArray,
+    triangles: IntArray,
+    skin: IntArray,
+    contour: list[FloatArray],
+    centre: float,
+    lip: IntArray,
+    other_lip: IntArray,
+    anchor: FloatArray,
+) -> FloatArray:
+    """The weight (0..1 per vertex) with which a lip midpoint FAP moves the
+    skin: lip_profile on the vertices of ``lip`` within LIP_BAND_M of the
+    contour's polyline (corner, midpoints, corner), 0 on ``other_lip`` and
+    on skin farther than LIP_REACH_M from ``anchor``, harmonic on the rest
+    of the skin (so it varies smoothly over the lips, into the mouth and
+    towards nose and chin)."""
+    points = np.asarray(contour)
+    p = v[lip]
+    dist = np.full(len(lip), np.inf)
+    for a, b in itertools.pairwise(points):
+        t = np.clip(((p - a) @ (b - a)) / float((b - a) @ (b - a)), 0.0, 1.0)
+        dist = np.minimum(dist, np.linalg.norm(p - (a + t[:, None] * (b - a)), axis=1))
+    corner = LIP_CORNER_SHARE * float(abs(points[0][0]))
+    band = lip[dist < LIP_BAND_M]
+    # Near the corners the harmonic part takes over (the lips meet there).
+    band = band[lip_profile(v[band, 0], centre, corner) >= LIP_BAND_FLOOR]
+    far = skin[np.linalg.norm(v[skin] - anchor, axis=1) > LIP_REACH_M]
+    zero = np.setdiff1d(np.union1d(far, other_lip), band)
+    fixed = np.concatenate([band, zero])
+    values = np.concatenate([lip_profile(v[band, 0], centre, corner), np.zeros(len(zero))])
+    free = np.setdiff1d(skin, fixed)
+    out = harmonic_fill(v, triangles, fixed, values, free)
+    # The feature point moves one FAPU per unit.
+    nearest = int(np.argmin(np.linalg.norm(v[lip] - anchor, axis=1)))
+    return out / out[lip[nearest]]
+
+
+def bump(x: FloatArray, centre: float, end_a: float, end_b: float) -> FloatArray:
+    """1 at ``centre``, falling as a raised cosine to 0 at ``end_a`` and
+    ``end_b`` (on either side of it), 0 beyond."""
+    out = np.zeros_like(x)
+    for end in (end_a, end_b):
+        span = end - centre
+        t = (x - centre) / span
+        half = (t >= 0) & (t < 1)
+        out[half] = np.cos(0.5 * np.pi * t[half]) ** 2
+    return out
+
+
 def mouth_inside(head: HeadMesh, lip_contours: IntArray, lower_inner: int) -> IntArray:
     """The skin of the mouth's inside: hm08's mouth is a closed pocket of
     skin that meets the face only at the lips' inner contours, so the pocket
@@ -845,7 +961,6 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     as they stretch, Tekalp and Ostermann 2000, section 2.1.3.1's example of FAP 54).
     """
     from realizer.face.model import (
-        CosineDeformer,
         DilateDeformer,
         EaseDeformer,
         RollDeformer,
@@ -941,24 +1056,6 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             )
         )
 
-    def cosine(
-        fap: int,
-        direction: tuple[float, float, float],
-        size: float,
-        scale: tuple[float, float, float],
-        mask: IntArray,
-    ) -> None:
-        masks[fap] = mask
-        deformers.append(
-            CosineDeformer(
-                fap=fap,
-                direction=direction,
-                size=round(size, 5),
-                scale=scale,
-                use_vertex_mask=True,
-            )
-        )
-
     mw0 = dist("8.3", "8.4")
     mns0 = float(fp["9.15"][1] - fp["2.2"][1])
     down, up, fwd = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
@@ -981,29 +1078,52 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     for fap, name, axis in ((3, "jawOpen", down), (14, "jawForward", fwd), (15, "jawRight", right)):
         deformers.append(target_table(fap, targets[name], to_head, fp_index["2.1"], axis, still))
 
-    # Lips. Inner contour (4..13, 16, 17) and outer contour (51..60): the
-    # midpoints use Xface's raised cosine, whose flat top keeps a lowered lip
-    # round instead of pointed, reaching past the neighbouring midpoints;
-    # corners reach 40 % of the mouth's width and move both lips.
-    lip_size = 0.7 * mw0
-    lip_scale = (1.0, 0.8 * mns0 / lip_size, 1.0)  # reaches 0.8 MNS0 up and down: not the nose
-    for fap, _point, direction, mask in (
-        (4, "2.2", down, upper_lip),
-        (8, "2.6", down, upper_lip),
-        (9, "2.7", down, upper_lip),
-        (5, "2.3", up, lower_lip),
-        (10, "2.8", up, lower_lip),
-        (11, "2.9", up, lower_lip),
-        (51, "8.1", down, upper_lip),
-        (55, "8.5", down, upper_lip),
-        (56, "8.6", down, upper_lip),
-        (52, "8.2", up, lower_lip),
-        (57, "8.7", up, lower_lip),
-        (58, "8.8", up, lower_lip),
+    # Lip midpoints (4, 5, 8..11, 16, 17 on the inner contour, 51, 52,
+    # 55..58 on the outer): FaceDefMesh tables of a smooth weight field on
+    # the skin (lip_field), full along the FAP's contour where its profile
+    # along the mouth peaks, nothing at the lip corners and on the other lip,
+    # and harmonic in between. Influence spheres masked to one lip folded
+    # triangles over at the corners (where the moving lip meets the still
+    # one) and inside the mouth; a weight that is 0 at the corners and
+    # varies smoothly over the surface does not.
+    skin_triangles = head.faces[np.isin(head.faces, skin).all(axis=1)]
+    contour_points = {
+        ("upper", "inner"): ("2.4", "2.6", "2.2", "2.7", "2.5"),
+        ("lower", "inner"): ("2.4", "2.8", "2.3", "2.9", "2.5"),
+        ("upper", "outer"): ("8.3", "8.5", "8.1", "8.6", "8.4"),
+        ("lower", "outer"): ("8.3", "8.7", "8.2", "8.8", "8.4"),
+    }
+    lips = {"upper": upper_lip, "lower": lower_lip}
+    for fap, point, direction, lip, contour in (
+        (4, "2.2", down, "upper", "inner"),
+        (8, "2.6", down, "upper", "inner"),
+        (9, "2.7", down, "upper", "inner"),
+        (17, "2.2", fwd, "upper", "inner"),
+        (5, "2.3", up, "lower", "inner"),
+        (10, "2.8", up, "lower", "inner"),
+        (11, "2.9", up, "lower", "inner"),
+        (16, "2.3", fwd, "lower", "inner"),
+        (51, "8.1", down, "upper", "outer"),
+        (55, "8.5", down, "upper", "outer"),
+        (56, "8.6", down, "upper", "outer"),
+        (52, "8.2", up, "lower", "outer"),
+        (57, "8.7", up, "lower", "outer"),
+        (58, "8.8", up, "lower", "outer"),
     ):
-        cosine(fap, direction, lip_size, lip_scale, mask)
-    cosine(16, fwd, lip_size, lip_scale, lower_lip)
-    cosine(17, fwd, lip_size, lip_scale, upper_lip)
+        other = lips["lower" if lip == "upper" else "upper"]
+        weight = lip_field(
+            v,
+            skin_triangles,
+            skin,
+            [fp[name] for name in contour_points[(lip, contour)]],
+            float(fp[point][0]),
+            lips[lip],
+            other,
+            fp[point],
+        )
+        per_unit = weight[:, None] * np.asarray(direction)[None, :]
+        keep = np.flatnonzero(weight > 0.0)
+        deformers.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], keep))
     # Lip corners: FaceDefMesh tables from the CC0 ARKit targets (spheres
     # made the lip line a straight diagonal with a kink). Raising (12, 13
     # inner, 59, 60 outer corner): mouthSmile* up, mouthFrown* down.
@@ -1095,11 +1215,17 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         widths = np.diff(np.concatenate([[0.0], rises]))
         raise_ = [step / (width * fapu_irisd) for step, width in zip(steps, widths, strict=True)]
         lifted = np.flatnonzero(np.linalg.norm(lift, axis=1) > 1e-5)
+        # Beyond the artist's squint (3.3 up 3.1 mm, about 350 units) the
+        # lid's middle goes on rising while its corners stay (the target's
+        # last slope, tapered to nothing at 3.7 and 3.11): carrying on with
+        # the whole slope folded the skin over at both corners.
+        inner, outer = ("3.11", "3.7") if side == "l" else ("3.8", "3.12")
+        taper = bump(v[:, 0], float(fp[bottom][0]), float(fp[inner][0]), float(fp[outer][0]))
         deformers.append(
             shape_table(
                 fap_bottom,
-                (-1000.0, 0.0, *(round(float(r), 1) for r in rises)),
-                [raise_[0], *raise_],
+                (-1000.0, 0.0, *(round(float(r), 1) for r in rises), 1000.0),
+                [raise_[0], *raise_, raise_[-1] * taper[:, None]],
                 lifted,
             )
         )
