@@ -1,7 +1,9 @@
 """Parse-and-serialise throughput of the BML parser against bare lxml.
 
 For the conformance corpus plus the examples, and for one block of 5,000
-behaviours, this times ``serialise(parse_bml(doc))`` and, as the baseline,
+behaviours, this times ``serialise(parse_bml(doc))`` (an unchanged parsed
+block is given back as its source text), the same with the tree written
+again (``from_source=False``, what a changed block costs) and, as the baseline,
 ``lxml.etree.tostring(lxml.etree.fromstring(doc))`` with the same hardened
 parser settings; it prints documents per second, MB/s and the ratio of our
 throughput to lxml's (goal: at least 1/3).
@@ -120,6 +122,10 @@ def measure(
         for document in documents:
             serialise(parse_bml(document).block)
 
+    def written() -> None:
+        for document in documents:
+            serialise(parse_bml(document).block, from_source=False)
+
     def bare() -> None:
         for document in documents:
             etree.tostring(etree.fromstring(document, _BYTES_PARSER))
@@ -130,17 +136,23 @@ def measure(
                 (el.tag, tuple(el.attrib.items()), el.text, el.tail, el.sourceline)
 
     t_ours = best_of(ours, repeats=repeats)
+    t_written = best_of(written, repeats=repeats)
     t_lxml = best_of(bare, repeats=repeats)
     t_floor = best_of(floor, repeats=repeats)
     print(
         f"{name}: {len(documents)} documents, {size / 1e3:.1f} kB\n"
         f"  realizer parse+serialise: {t_ours * 1e3:8.2f} ms  "
         f"({len(documents) / t_ours:9.0f} docs/s, {size / t_ours / 1e6:6.2f} MB/s)\n"
+        f"  realizer parse+writer:    {t_written * 1e3:8.2f} ms  "
+        f"({len(documents) / t_written:9.0f} docs/s; the tree written again, as for a "
+        "changed block)\n"
         f"  lxml parse+tostring:      {t_lxml * 1e3:8.2f} ms  "
         f"({len(documents) / t_lxml:9.0f} docs/s, {size / t_lxml / 1e6:6.2f} MB/s)\n"
         f"  floor (lxml parse + touching every element from Python): {t_floor * 1e3:.2f} ms"
     )
     figure(f"{name}: realizer parse+serialise", len(documents) / t_ours, "docs/s")
+    figure(f"{name}: realizer parse+writer (changed block)", len(documents) / t_written,
+           "docs/s")  # fmt: skip
     figure(f"{name}: lxml parse+tostring", len(documents) / t_lxml, "docs/s")
     figure(f"{name}: ratio realizer/lxml", t_lxml / t_ours, "x", goal=1 / 3, higher_is_better=True)
     figure(f"{name}: ratio floor/lxml", t_lxml / t_floor, "x")
@@ -149,6 +161,7 @@ def measure(
                "docs/s")  # fmt: skip
         figure(f"{name}: ratio realizer/Java", java_seconds / t_ours, "x", goal=1.0,
                higher_is_better=True)  # fmt: skip
+        figure(f"{name}: ratio realizer parse+writer/Java", java_seconds / t_written, "x")
 
 
 def run(quick: bool = False) -> None:

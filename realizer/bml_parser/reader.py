@@ -1011,6 +1011,33 @@ def _make(cls: type[_Node], fields: dict[str, Any], *extra: Any) -> _Node:
     )
 
 
+_UTF8_NAMES = frozenset({"UTF-8", "UTF8", "US-ASCII", "ASCII"})
+
+
+def _source_text(data: str | bytes, raw: bytes, encoding: str | None) -> str:
+    """The document as text without its XML declaration, for ``Block.source``;
+    ``""`` for bytes in an encoding other than UTF-8 (those are written from
+    the tree). Linear: one decode and one search for the declaration's end."""
+    if isinstance(data, str):
+        text = data
+    else:
+        if (encoding or "UTF-8").upper() not in _UTF8_NAMES:
+            return ""
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError:
+            return ""
+    if text.startswith("\ufeff"):
+        text = text[1:]
+    # the declaration, not a processing instruction such as <?xml-stylesheet?>
+    if text.startswith("<?xml") and text[5:6] in (" ", "\t", "\r", "\n"):
+        end = text.find("?>", 5)
+        if end < 0:
+            return ""
+        text = text[end + 2 :].lstrip(" \t\r\n")
+    return text
+
+
 def _to_bytes(data: str | bytes) -> tuple[bytes, etree.XMLParser]:
     if isinstance(data, str):
         return data.encode("utf-8"), _TEXT_PARSER
@@ -1061,4 +1088,7 @@ def parse_bml(
     finally:
         if collecting:
             gc.enable()
+    text = _source_text(data, raw, docinfo.encoding)
+    if text:
+        object.__setattr__(block, "source", text)  # see Block.source
     return ParseResult(block, reader.final_warnings(), frozenset(reader.dropped))

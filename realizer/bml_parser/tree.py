@@ -22,7 +22,7 @@ place that derives the parsed fields from the XML, so they always agree.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from realizer.bml_parser.nodes import Comment, ProcessingInstruction, XmlElement
 
@@ -166,6 +166,13 @@ class Block(XmlElement):
     ``composition`` is ``MERGE`` (the default), ``APPEND`` or ``REPLACE``.
     ``prolog``/``epilog`` are the comments and processing instructions before
     and after the root element.
+
+    ``source`` is the document as the parser read it (its XML declaration
+    left out), or ``""``: the writer gives it back as it is instead of
+    writing the tree again. It is not an argument of the constructor, so a
+    block built by hand, or changed with :func:`dataclasses.replace` (the
+    only way to change an immutable tree: any change below makes a new
+    block), has none and is written from its fields.
     """
 
     id: str = ""
@@ -177,6 +184,7 @@ class Block(XmlElement):
     prolog: tuple[Comment | ProcessingInstruction, ...] = ()
     epilog: tuple[Comment | ProcessingInstruction, ...] = ()
     control: BlockControl = NO_CONTROL
+    source: str = field(default="", init=False, repr=False, compare=False)
 
     def behaviour(self, behaviour_id: str) -> Behaviour | None:
         for behaviour in self.behaviours:

@@ -202,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
                 continue
         if args.roundtrip:
             expected = canonical(data)
-            actual = canonical(serialise(result.block))
+            actual = canonical(serialise(result.block, from_source=False))
             if expected == actual:
                 print(f"OK {path}")
             else:
