@@ -53,7 +53,9 @@ def test_roundtrip_reports_diff_and_exits_1(
 ) -> None:
     real = realizer.bml_parser.serialise
     monkeypatch.setattr(
-        realizer.bml_parser, "serialise", lambda block: real(block).replace("NOD", "SHAKE")
+        realizer.bml_parser,
+        "serialise",
+        lambda block, **kw: real(block, **kw).replace("NOD", "SHAKE"),
     )
     assert main(["parse", "--roundtrip", str(SPEECH)]) == 1
     out = capsys.readouterr().out
