@@ -14,8 +14,10 @@ Nodes are immutable; ``line`` is not part of equality.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import dataclasses
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,3 +86,31 @@ class XmlElement:
 
 
 Node = XmlElement | Comment | ProcessingInstruction
+
+
+_T = TypeVar("_T")
+
+
+def builder(cls: type[_T]) -> Callable[..., _T]:
+    """A constructor of the frozen dataclass ``cls`` that takes every field
+    positionally, in declared order, and sets the slots directly.
+
+    It builds the same object as ``cls(...)`` at half the cost: a frozen
+    dataclass's ``__init__`` calls ``object.__setattr__`` once per field,
+    which the parser pays for every node of every block. Only for classes
+    whose fields are all constructor arguments and that have no
+    ``__post_init__`` (checked here).
+    """
+    fields = dataclasses.fields(cls)  # type: ignore[arg-type]
+    if not all(f.init for f in fields) or hasattr(cls, "__post_init__"):
+        raise TypeError(f"{cls.__name__} has fields outside __init__ or a __post_init__")
+    namespace: dict[str, Any] = {"_new": object.__new__, "_cls": cls}
+    for index, f in enumerate(fields):
+        slot = next(k.__dict__[f.name] for k in cls.__mro__ if f.name in k.__dict__)
+        namespace[f"_set{index}"] = slot.__set__
+    arguments = ", ".join(f"a{index}" for index in range(len(fields)))
+    body = "".join(f"    _set{index}(o, a{index})\n" for index in range(len(fields)))
+    exec(f"def make({arguments}):\n    o = _new(_cls)\n{body}    return o\n", namespace)
+    make: Callable[..., _T] = namespace["make"]
+    make.__doc__ = f"{cls.__name__}(...) with every field positional, built slot by slot."
+    return make

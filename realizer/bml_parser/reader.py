@@ -40,7 +40,7 @@ import gc
 import itertools
 import re
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any
 
 from lxml import etree
 
@@ -52,8 +52,8 @@ from realizer.bml_parser.errors import (
     SyncRefError,
     WarningType,
 )
-from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement
-from realizer.bml_parser.syncref import MAX_ITERATION, SyncRef, parse_sync_ref
+from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement, builder
+from realizer.bml_parser.syncref import MAX_ITERATION, SyncRef, fast_sync_ref, parse_sync_ref
 from realizer.bml_parser.tree import (
     NO_CONTROL,
     Behaviour,
@@ -325,16 +325,14 @@ class _Reader:
         el: Any,
         parent_nsmap: dict[str | None, str],
         attributes: tuple[tuple[str, str], ...] | None = None,
-    ) -> tuple[dict[str, Any], dict[str | None, str]]:
-        """The lossless fields every element keeps (children filled by the caller),
-        and the namespaces in scope inside it."""
-        if len(el.attrib) > self.limits.max_attributes:
-            raise self.error(
-                BmlSecurityError,
-                f"<{etree.QName(el).localname}> has {len(el.attrib)} attributes; the limit is "
-                f"{self.limits.max_attributes} per element",
-                el,
-            )
+    ) -> tuple[list[Any], dict[str | None, str]]:
+        """The lossless fields every element keeps, in :class:`XmlElement`'s
+        order (``children``, index 3, is filled by the caller), and the
+        namespaces in scope inside it. ``attributes``: the element's, when
+        the caller has listed them already (after :meth:`check_attributes`)."""
+        if attributes is None:
+            self.check_attributes(el)
+            attributes = tuple(el.items())
         if self.flat_namespaces and parent_nsmap:
             nsmap = parent_nsmap
             decls: tuple[tuple[str | None, str], ...] = ()
@@ -343,31 +341,48 @@ class _Reader:
             decls = tuple(
                 (prefix, uri) for prefix, uri in nsmap.items() if parent_nsmap.get(prefix) != uri
             )
-        return {
-            "tag": el.tag,
-            "attributes": tuple(el.attrib.items()) if attributes is None else attributes,
-            "text": el.text or "",
-            "tail": el.tail or "",
-            "prefix": el.prefix,
-            "nsdecls": decls,
-            "line": el.sourceline or 0,
-        }, nsmap
+        return [
+            el.tag,
+            attributes,
+            el.text or "",
+            (),
+            el.tail or "",
+            el.prefix,
+            decls,
+            el.sourceline or 0,
+        ], nsmap
+
+    def check_attributes(self, el: Any) -> None:
+        """Refuse an element with more than ``limits.max_attributes`` attributes.
+
+        Counted before they are listed: lxml lists an element's attributes
+        (``items()``) in time quadratic in their number.
+        """
+        count = len(el.attrib)
+        if count > self.limits.max_attributes:
+            raise self.error(
+                BmlSecurityError,
+                f"<{etree.QName(el).localname}> has {count} attributes; the limit is "
+                f"{self.limits.max_attributes} per element",
+                el,
+            )
 
     def other(self, node: Any, nsmap: dict[str | None, str], depth: int) -> Node:
         """Any node kept as written: comments, PIs and elements the grammar does not name."""
-        if isinstance(node, etree._Comment):
-            return Comment(node.text or "", node.tail or "")
-        if isinstance(node, etree._ProcessingInstruction):
-            return ProcessingInstruction(str(node.target), node.text or "", node.tail or "")
-        if isinstance(node, etree._Entity):
+        if node.tag.__class__ is not str:
+            if isinstance(node, etree._Comment):
+                return Comment(node.text or "", node.tail or "")
+            if isinstance(node, etree._ProcessingInstruction):
+                return ProcessingInstruction(str(node.target), node.text or "", node.tail or "")
             raise self.error(BmlSecurityError, "entity references are not allowed in BML", node)
         if depth > self.limits.max_depth:
             raise self.error(
                 BmlSecurityError, f"elements nested deeper than {self.limits.max_depth}", node
             )
         fields, inner = self.common(node, nsmap)
-        fields["children"] = tuple(self.other(child, inner, depth + 1) for child in node)
-        return _make(XmlElement, fields)
+        if len(node):
+            fields[3] = tuple([self.other(child, inner, depth + 1) for child in node])
+        return _new_element(*fields)
 
     # -- the grammar ---------------------------------------------------------
 
@@ -404,17 +419,26 @@ class _Reader:
         self.flat_namespaces = self.data.count(b"xmlns") == len(nsmap)
         behaviours: list[Behaviour] = []
         constraints: list[Constraint] = []
-        fields["children"] = tuple(
-            self.block_child(child, nsmap, False, behaviours, constraints) for child in root
+        block_child = self.block_child
+        fields[3] = tuple(
+            [block_child(child, nsmap, False, behaviours, constraints) for child in root]
         )
         prolog = tuple(
             self.other(sibling, {}, 0)
             for sibling in reversed(list(root.itersiblings(preceding=True)))
         )
         epilog = tuple(self.other(sibling, {}, 0) for sibling in root.itersiblings())
-        fields["tail"] = ""
+        fields[4] = ""  # the tail
+        tag, attributes, text, children, tail, prefix, nsdecls, line = fields
         return Block(
-            **fields,
+            tag,
+            attributes,
+            text,
+            children,
+            tail,
+            prefix,
+            nsdecls,
+            line,
             id=block_id,
             character_id=root.get("characterId"),
             composition=composition.upper(),
@@ -460,27 +484,27 @@ class _Reader:
         behaviours: list[Behaviour],
         constraints: list[Constraint],
     ) -> Node:
-        if not isinstance(el.tag, str):
+        tag = el.tag
+        if tag.__class__ is not str:
             return self.other(el, nsmap, 1)
-        tag: str = el.tag
+        spec = _SPECS_BY_TAG.get(tag)
+        if spec is not None:
+            behaviour = self.behaviour(el, nsmap, spec, required)
+            if behaviour.__class__ is Behaviour:
+                behaviours.append(behaviour)
+            return behaviour
         namespace, _, local = tag[1:].partition("}") if tag[0] == "{" else ("", "", tag)
         dialect = DIALECTS.get(namespace)
         if dialect in ("bml", "draft") and local == "required":
             fields, inner = self.common(el, nsmap)
-            fields["children"] = tuple(
-                self.block_child(child, inner, True, behaviours, constraints) for child in el
+            fields[3] = tuple(
+                [self.block_child(child, inner, True, behaviours, constraints) for child in el]
             )
-            return Required(**fields)
+            return _new_required(*fields)
         if dialect in ("bml", "draft") and local == "constraint":
             constraint = self.constraint(el, nsmap, required)
             constraints.append(constraint)
             return constraint
-        spec = self.vocab.spec(namespace, local)
-        if spec is not None:
-            behaviour = self.behaviour(el, nsmap, spec, required)
-            if isinstance(behaviour, Behaviour):
-                behaviours.append(behaviour)
-            return behaviour
         if namespace == "" and self.vocab.spec(BML_NS, local) is not None:
             # The usual mistake: BML 1.0 written without its namespace.
             self.warn(
@@ -543,13 +567,15 @@ class _Reader:
         params: list[tuple[str, str]] = []
         sync_refs: list[tuple[str, SyncRef]] = []
         problem = ""
-        if len(el.attrib) > self.limits.max_attributes:
-            self.common(el, nsmap)  # raises the limit's error
-        attributes = tuple(el.attrib.items())
+        self.check_attributes(el)
+        attributes = tuple(el.items())
         for name, value in attributes:
             sync_name = sync_attributes.get(name)
             if sync_name is not None:
-                sync_refs.append((sync_name, self.sync_ref(value, el, name, aliases)))
+                ref = fast_sync_ref(value) if not aliases else None
+                if ref is None:
+                    ref = self.sync_ref(value, el, name, aliases)
+                sync_refs.append((sync_name, ref))
             elif name in understood:
                 if name in spec.numeric and not _number_within(value, self.limits.max_number):
                     problem = (
@@ -578,7 +604,8 @@ class _Reader:
                     behaviour_id,
                     needle=f"{name}=",
                 )
-        if spec.type == "speech" and el.get(_XML_LANG) is None:
+        behaviour_type = spec.type
+        if behaviour_type == "speech" and el.get(_XML_LANG) is None:
             # BML 1.0: a speech's language is its own xml:lang, else the
             # nearest enclosing element's (the block's).
             for ancestor in el.iterancestors():
@@ -586,43 +613,59 @@ class _Reader:
                 if lang is not None:
                     params.append(("lang", lang))
                     break
-        if spec.required:
-            present = {name for name, _ in params}
-            missing = [name for name in spec.required if name not in present]
-            if missing:
-                problem = f"<{local}> {behaviour_id!r} lacks the attribute {missing[0]!r}"
-        behaviour_type = spec.type
+        for name in spec.required:
+            if not any(key == name for key, _ in params):
+                problem = f"<{local}> {behaviour_id!r} lacks the attribute {name!r}"
+                break
         if spec.dialect == "draft":
             behaviour_type, params, draft_problem = self.translate(spec, params, behaviour_id)
             problem = problem or draft_problem
         if not problem and behaviour_type in _CHECKED_TYPES:
             problem = self.check_params(behaviour_type, params, behaviour_id, self.limits)
 
-        fields, inner = self.common(el, nsmap, attributes)
-        children: list[Node] = []
+        if self.flat_namespaces:
+            inner = nsmap
+            decls: tuple[tuple[str | None, str], ...] = ()
+        else:
+            inner = el.nsmap
+            decls = tuple(
+                (prefix, uri) for prefix, uri in inner.items() if nsmap.get(prefix) != uri
+            )
+        fields = [
+            el.tag,
+            attributes,
+            el.text or "",
+            (),
+            el.tail or "",
+            el.prefix,
+            decls,
+            el.sourceline or 0,
+        ]
         descriptions: list[Description] = []
         speech: SpeechText | None = None
-        for child in el:
-            tag = child.tag
-            if isinstance(tag, str) and tag.rpartition("}")[0] in _CORE_PREFIXES:
-                local_child = tag.rpartition("}")[2]
-                if local_child == "description":
-                    description = self.description(child, inner)
-                    descriptions.append(description)
-                    children.append(description)
-                    continue
-                if local_child == "text" and spec.type == "speech" and speech is None:
-                    speech = self.speech_text(child, inner, behaviour_id, aliases)
-                    children.append(speech)
-                    continue
-            elif (
-                spec.type == "parameterValueChange"
-                and tag == _BMLA_PREFIX + "trajectory"
-                and "targetValue" not in dict(params)
-            ):
-                problem = problem or self.trajectory(child, params, behaviour_id)
-            children.append(self.other(child, inner, 2))
-        fields["children"] = tuple(children)
+        if len(el):
+            children: list[Node] = []
+            for child in el:
+                tag = child.tag
+                if tag.__class__ is str and tag.rpartition("}")[0] in _CORE_PREFIXES:
+                    local_child = tag.rpartition("}")[2]
+                    if local_child == "description":
+                        description = self.description(child, inner)
+                        descriptions.append(description)
+                        children.append(description)
+                        continue
+                    if local_child == "text" and spec.type == "speech" and speech is None:
+                        speech = self.speech_text(child, inner, behaviour_id, aliases)
+                        children.append(speech)
+                        continue
+                elif (
+                    spec.type == "parameterValueChange"
+                    and tag == _BMLA_PREFIX + "trajectory"
+                    and "targetValue" not in dict(params)
+                ):
+                    problem = problem or self.trajectory(child, params, behaviour_id)
+                children.append(self.other(child, inner, 2))
+            fields[3] = tuple(children)
         if (
             spec.type == "parameterValueChange"
             and not problem
@@ -634,16 +677,15 @@ class _Reader:
             self.warn(
                 WarningType.CANNOT_CREATE_BEHAVIOR, problem + "; it is ignored", el, behaviour_id
             )
-            return XmlElement(**fields)
+            return _new_element(*fields)
 
         syncs = spec.syncs
         if speech is not None or (behaviour_type == "head" and params):
             syncs = self.sync_points(spec, params, speech)
-        if len(sync_refs) > 1:
+        if len(sync_refs) > 1 and sum(ref.behaviour is None for _, ref in sync_refs) > 1:
             self.check_absolute_order(syncs, sync_refs, el, behaviour_id)
-        return _make(
-            Behaviour,
-            fields,
+        return _new_behaviour(
+            *fields,
             behaviour_id,  # id
             behaviour_type,  # type
             spec.dialect,  # dialect
@@ -827,7 +869,7 @@ class _Reader:
 
     def description(self, el: Any, nsmap: dict[str | None, str]) -> Description:
         fields, inner = self.common(el, nsmap)
-        fields["children"] = tuple(self.other(child, inner, 3) for child in el)
+        fields[3] = tuple([self.other(child, inner, 3) for child in el])
         priority_text = el.get("priority", "0")
         try:
             if len(priority_text) > 12:  # int() of thousands of digits is slow
@@ -841,7 +883,7 @@ class _Reader:
                 el,
                 'priority="',
             ) from None
-        return _make(Description, fields, priority, el.get("type", ""))
+        return _new_description(*fields, priority, el.get("type", ""))
 
     def speech_text(
         self, el: Any, nsmap: dict[str | None, str], behaviour_id: str, aliases: Any
@@ -875,8 +917,9 @@ class _Reader:
                 ref_text = child.get("ref")
                 ref = self.sync_ref(ref_text, child, "ref", aliases) if ref_text else None
                 sync_fields, sync_inner = self.common(child, inner)
-                sync_fields["children"] = tuple(self.other(c, sync_inner, 4) for c in child)
-                marker = _make(TextSync, sync_fields, sync_id, ref)
+                if len(child):
+                    sync_fields[3] = tuple([self.other(c, sync_inner, 4) for c in child])
+                marker = _new_text_sync(*sync_fields, sync_id, ref)
                 children.append(marker)
                 runs.append(marker)
             else:
@@ -885,7 +928,7 @@ class _Reader:
                 if isinstance(node, XmlElement):
                     runs.append("".join(child.itertext()))
             runs.append(child.tail or "")
-        fields["children"] = tuple(children)
+        fields[3] = tuple(children)
         merged: list[str | TextSync] = []
         for run in runs:
             if isinstance(run, str) and merged and isinstance(merged[-1], str):
@@ -900,7 +943,7 @@ class _Reader:
                 f"{self.limits.max_speech_chars}",
                 el,
             )
-        return _make(SpeechText, fields, tuple(merged))
+        return _new_speech_text(*fields, tuple(merged))
 
     def constraint(self, el: Any, nsmap: dict[str | None, str], required: bool) -> Constraint:
         fields, inner = self.common(el, nsmap)
@@ -917,10 +960,8 @@ class _Reader:
                 children.append(relation)
             else:
                 children.append(self.other(child, inner, 2))
-        fields["children"] = tuple(children)
-        return Constraint(
-            **fields, id=el.get("id", ""), required=required, relations=tuple(relations)
-        )
+        fields[3] = tuple(children)
+        return _new_constraint(*fields, el.get("id", ""), required, tuple(relations))
 
     def relation(self, el: Any, nsmap: dict[str | None, str]) -> Relation:
         kind = etree.QName(el).localname
@@ -944,14 +985,14 @@ class _Reader:
                     )
                 syncs.append(self.sync_ref(sync_text, child, "ref"))
             children.append(self.other(child, inner, 3))
-        fields["children"] = tuple(children)
+        fields[3] = tuple(children)
         if len(syncs) + (ref is not None) < 2 and kind == "synchronize":
             self.warn(
                 WarningType.PARSING_FAILURE,
                 "<synchronize> with fewer than two sync points constrains nothing",
                 el,
             )
-        return Relation(**fields, kind=kind, ref=ref, syncs=tuple(syncs))
+        return _new_relation(*fields, kind, ref, tuple(syncs))
 
 
 _XML_SPACE = b" \t\r\n"
@@ -991,24 +1032,28 @@ _DOCTYPE_MESSAGE = (
 )
 
 
-_Node = TypeVar("_Node", bound=XmlElement)
+# Positional constructors that set slots directly (nodes.builder): building
+# the nodes is most of what parsing costs.
+_new_element = builder(XmlElement)
+_new_behaviour = builder(Behaviour)
+_new_description = builder(Description)
+_new_text_sync = builder(TextSync)
+_new_speech_text = builder(SpeechText)
+_new_constraint = builder(Constraint)
+_new_relation = builder(Relation)
+_new_required = builder(Required)
 
 
-def _make(cls: type[_Node], fields: dict[str, Any], *extra: Any) -> _Node:
-    """Build a node positionally: ``XmlElement``'s fields in their declared
-    order, then the subclass's (a keyword call costs more than twice as much,
-    which matters with thousands of behaviours per block)."""
-    return cls(
-        fields["tag"],
-        fields["attributes"],
-        fields["text"],
-        fields["children"],
-        fields["tail"],
-        fields["prefix"],
-        fields["nsdecls"],
-        fields["line"],
-        *extra,
-    )
+def _specs_by_tag() -> dict[str, BehaviourSpec]:
+    """The behaviour specs by the Clark name of their element (``{ns}local``, or
+    ``local`` for no namespace)."""
+    return {
+        (f"{{{namespace}}}{element}" if namespace else element): spec
+        for (namespace, element), spec in vocabulary().specs.items()
+    }
+
+
+_SPECS_BY_TAG = _specs_by_tag()
 
 
 _UTF8_NAMES = frozenset({"UTF-8", "UTF8", "US-ASCII", "ASCII"})
@@ -1080,15 +1125,18 @@ def parse_bml(
     reader = _Reader(raw, source, limits)
     # Building the tree allocates many small objects and no cycles; pausing
     # the cyclic garbage collector meanwhile (as JSON decoders do) saves a
-    # third of the time on large blocks. It is restored on every exit.
+    # third of the time on large blocks. It is restored on every exit, after
+    # the result is built: the first allocation once it runs again starts a
+    # pass over every object made meanwhile, which is the caller's to pay
+    # while it keeps the tree (nothing, for a tree it drops).
     collecting = gc.isenabled()
     gc.disable()
     try:
         block = reader.block(root)
+        text = _source_text(data, raw, docinfo.encoding)
+        if text:
+            object.__setattr__(block, "source", text)  # see Block.source
+        return ParseResult(block, reader.final_warnings(), frozenset(reader.dropped))
     finally:
         if collecting:
             gc.enable()
-    text = _source_text(data, raw, docinfo.encoding)
-    if text:
-        object.__setattr__(block, "source", text)  # see Block.source
-    return ParseResult(block, reader.final_warnings(), frozenset(reader.dropped))

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 from realizer.bml_parser.errors import SyncRefError
+from realizer.bml_parser.nodes import builder
 
 #: The largest magnitude of a time or an offset, seconds (one hour). Beyond
 #: it a block would not end within any session a person watches, and the
@@ -85,6 +86,9 @@ class SyncRef:
         return self.raw
 
 
+_new_ref = builder(SyncRef)
+
+
 def _seconds(text: str, raw: str, what: str) -> float:
     """``text`` (already known to be a decimal number) as seconds within the limit."""
     value = float(text)
@@ -109,6 +113,30 @@ _FAST_RE = re.compile(
     rf"\s*(?:(?P<time>[+-]?(?:{_NUMBER}))|(?P<beh>[A-Za-z_][\w.\-]*?):(?P<sync>[A-Za-z_][\w.]*)"
     rf"(?:(?P<sign>[+-])(?P<num>{_NUMBER}))?)\s*"
 )
+_FAST_MATCH = _FAST_RE.fullmatch
+
+
+def fast_sync_ref(raw: str) -> SyncRef | None:
+    """The common shapes, ``behaviour:sync[+|-offset]`` or a number within
+    :data:`MAX_SECONDS`, parsed by one match; None for anything else (which
+    :func:`parse_sync_ref` parses, or refuses, in full). No dialect aliases."""
+    match = _FAST_MATCH(raw)
+    if match is None:
+        return None
+    time, behaviour, sync, sign, number = match.groups()
+    if time is not None:
+        value = float(time)
+        if abs(value) <= MAX_SECONDS:
+            return _new_ref(raw, None, None, None, None, value)
+        return None
+    offset = 0.0
+    if number is not None:
+        offset = float(number)
+        if sign == "-":
+            offset = -offset
+        if not abs(offset) <= MAX_SECONDS:
+            return None
+    return _new_ref(raw, behaviour, sync, None, None, offset)
 
 
 def parse_sync_ref(raw: str, *, sync_aliases: tuple[tuple[str, str], ...] = ()) -> SyncRef:
@@ -117,22 +145,10 @@ def parse_sync_ref(raw: str, *, sync_aliases: tuple[tuple[str, str], ...] = ()) 
     ``sync_aliases`` maps dialect sync names (``stroke_start``) to BML 1.0
     names (``strokeStart``); the raw text keeps the original spelling.
     """
-    match = _FAST_RE.fullmatch(raw)
-    if match is not None and not sync_aliases:
-        time = match.group("time")
-        if time is not None:
-            value = float(time)
-            if abs(value) <= MAX_SECONDS:
-                return SyncRef(raw, None, None, None, None, value)
-        else:
-            number = match.group("num")
-            offset = 0.0
-            if number is not None:
-                offset = float(number)
-                if match.group("sign") == "-":
-                    offset = -offset
-            if abs(offset) <= MAX_SECONDS:
-                return SyncRef(raw, match.group("beh"), match.group("sync"), None, None, offset)
+    if not sync_aliases:
+        ref = fast_sync_ref(raw)
+        if ref is not None:
+            return ref
     if len(raw) <= _CACHED_CHARS:
         return _parse_cached(raw, sync_aliases)
     return _parse(raw, sync_aliases)
