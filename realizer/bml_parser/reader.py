@@ -567,7 +567,8 @@ class _Reader:
         params: list[tuple[str, str]] = []
         sync_refs: list[tuple[str, SyncRef]] = []
         problem = ""
-        self.check_attributes(el)
+        if len(el.attrib) > self.limits.max_attributes:
+            self.check_attributes(el)  # raises
         attributes = tuple(el.items())
         for name, value in attributes:
             sync_name = sync_attributes.get(name)
@@ -614,13 +615,20 @@ class _Reader:
                     params.append(("lang", lang))
                     break
         for name in spec.required:
-            if not any(key == name for key, _ in params):
+            for key, _ in params:
+                if key == name:
+                    break
+            else:
                 problem = f"<{local}> {behaviour_id!r} lacks the attribute {name!r}"
                 break
         if spec.dialect == "draft":
             behaviour_type, params, draft_problem = self.translate(spec, params, behaviour_id)
             problem = problem or draft_problem
-        if not problem and behaviour_type in _CHECKED_TYPES:
+        # a head's checks and extra strokes are all about its repetition
+        repeated = behaviour_type == "head" and any(key == "repetition" for key, _ in params)
+        if not problem and (
+            repeated or (behaviour_type in _CHECKED_TYPES and behaviour_type != "head")
+        ):
             problem = self.check_params(behaviour_type, params, behaviour_id, self.limits)
 
         if self.flat_namespaces:
@@ -680,10 +688,15 @@ class _Reader:
             return _new_element(*fields)
 
         syncs = spec.syncs
-        if speech is not None or (behaviour_type == "head" and params):
+        if speech is not None or repeated:
             syncs = self.sync_points(spec, params, speech)
-        if len(sync_refs) > 1 and sum(ref.behaviour is None for _, ref in sync_refs) > 1:
-            self.check_absolute_order(syncs, sync_refs, el, behaviour_id)
+        if len(sync_refs) > 1:
+            times = 0
+            for _, ref in sync_refs:
+                if ref.behaviour is None:
+                    times += 1
+            if times > 1:
+                self.check_absolute_order(syncs, sync_refs, el, behaviour_id)
         return _new_behaviour(
             *fields,
             behaviour_id,  # id
@@ -890,10 +903,13 @@ class _Reader:
     ) -> SpeechText:
         fields, inner = self.common(el, nsmap)
         children: list[Node] = []
-        runs: list[str | TextSync] = [el.text or ""]
+        # runs of words between markers, joined once each (linear in the text)
+        merged: list[str | TextSync] = []
+        words: list[str] = [el.text or ""]
         seen: set[str] = set()
         for child in el:
-            if isinstance(child.tag, str) and etree.QName(child).localname == "sync":
+            tag = child.tag
+            if tag.__class__ is str and tag.rpartition("}")[2] == "sync":
                 sync_id = child.get("id")
                 if not sync_id:
                     raise self.error(
@@ -915,27 +931,35 @@ class _Reader:
                         child,
                     )
                 ref_text = child.get("ref")
-                ref = self.sync_ref(ref_text, child, "ref", aliases) if ref_text else None
+                ref = None
+                if ref_text:
+                    ref = fast_sync_ref(ref_text) if not aliases else None
+                    if ref is None:
+                        ref = self.sync_ref(ref_text, child, "ref", aliases)
                 sync_fields, sync_inner = self.common(child, inner)
                 if len(child):
                     sync_fields[3] = tuple([self.other(c, sync_inner, 4) for c in child])
                 marker = _new_text_sync(*sync_fields, sync_id, ref)
                 children.append(marker)
-                runs.append(marker)
+                text = "".join(words)
+                if text:
+                    merged.append(text)
+                merged.append(marker)
+                words = []
             else:
                 node = self.other(child, inner, 4)
                 children.append(node)
-                if isinstance(node, XmlElement):
-                    runs.append("".join(child.itertext()))
-            runs.append(child.tail or "")
+                if node.__class__ is not Comment and node.__class__ is not ProcessingInstruction:
+                    words.append("".join(child.itertext()))
+            words.append(child.tail or "")
+        text = "".join(words)
+        if text:
+            merged.append(text)
         fields[3] = tuple(children)
-        merged: list[str | TextSync] = []
-        for run in runs:
-            if isinstance(run, str) and merged and isinstance(merged[-1], str):
-                merged[-1] += run
-            elif run != "":
-                merged.append(run)
-        spoken = sum(len(run) for run in merged if isinstance(run, str))
+        spoken = 0
+        for run in merged:
+            if run.__class__ is str:
+                spoken += len(run)
         if spoken > self.limits.max_speech_chars:
             raise self.error(
                 BmlSecurityError,
