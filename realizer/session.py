@@ -40,7 +40,7 @@ from realizer.feedback import (
     sync_point_progress,
     warning,
 )
-from realizer.scheduler.plan import SchedulingFailed, TimedPlan, schedule_block
+from realizer.scheduler.plan import ScheduledBehaviour, SchedulingFailed, TimedPlan, schedule_block
 
 if TYPE_CHECKING:  # the types only; the modules load when a face or speech is used
     from realizer.engines.speech.engine import AudioClip
@@ -288,6 +288,13 @@ class Session:
                 dropped=result.dropped,
                 external=external,
                 warnings=result.warnings,
+                # strict mode judges the block as it would run: what its REPLACE
+                # or bmla:interrupt would stop takes no channel from it
+                occupied=self._occupied(
+                    start,
+                    stops=set(control.interrupt)
+                    | (set(self.active_blocks) if block.composition == "REPLACE" else set()),
+                ),
             )
         except SchedulingFailed as exc:
             for note in exc.warnings:
@@ -393,7 +400,8 @@ class Session:
                 external.update(other.plan.global_keys())
         try:
             plan = schedule_block(block, start=start, registry=self.registry,
-                                  dropped=record.result.dropped, external=external)  # fmt: skip
+                                  dropped=record.result.dropped, external=external,
+                                  occupied=self._occupied(start, record))  # fmt: skip
         except SchedulingFailed as exc:
             for note in exc.warnings:
                 self._emit(warning(block.id, note.id, str(note.type), note.message, now,
@@ -411,6 +419,23 @@ class Session:
                               self.character_id))  # fmt: skip
         if record not in self._live:
             self._live.append(record)
+
+    def _occupied(
+        self, start: float, planning: _Record | None = None, stops: set[str] | None = None
+    ) -> list[tuple[str, ScheduledBehaviour]]:
+        """Behaviours of the other pending and running blocks (but ``stops``)
+        that end after ``start``: their resource channels are taken
+        (docs/scheduler.md, "Resource conflicts")."""
+        return [
+            (record.plan.id, scheduled)
+            for record in self._blocks.values()
+            if record is not planning
+            and record.plan.id not in (stops or ())
+            and record.lifecycle.state in ACTIVE
+            and not record.preplanned  # may never run (BMLA preplan, not activated)
+            for scheduled in record.plan.behaviours
+            if scheduled.end > start
+        ]
 
     def _prepend(self, record: _Record, block_id: str, now: float) -> None:
         """BMLA prependBefore: ``block_id`` does not start before ``record`` ends."""

@@ -65,7 +65,11 @@ def test_two_characters_look_at_each_other() -> None:
     stage = Stage(lambda character: Session(character))
     stage.submit_bml(gaze("a", "Bob", "Alice"), 0.0)  # Bob does not exist yet: warned
     stage.submit_bml(gaze("b", "Alice", "Bob"), 0.0)
-    stage.submit_bml(gaze("a2", "Bob", "Alice"), 0.0)  # now he does
+    # now he does; the new gaze replaces the first (a MERGE gaze inside it
+    # would be removed: the channel is taken, docs/scheduler.md)
+    stage.submit_bml(
+        gaze("a2", "Bob", "Alice").replace(' id="a2"', ' id="a2" composition="REPLACE"'), 0.0
+    )
     stage.tick(1.0)
     alice = stage.characters["Alice"].session.frame(1.0).values[YAW]
     bob = stage.characters["Bob"].session.frame(1.0).values[YAW]

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -351,6 +351,7 @@ def schedule_block(
     external: Mapping[GlobalKey, float] | None = None,
     fixed: Mapping[Key, float] | None = None,
     warnings: tuple[BmlWarning, ...] = (),
+    occupied: Sequence[tuple[str, ScheduledBehaviour]] = (),
 ) -> TimedPlan:
     """Solve one block whose start is ``start`` (global seconds).
 
@@ -358,8 +359,11 @@ def schedule_block(
     ``dropped`` are behaviours the parser already ruled out; ``external``
     gives global times of sync points of other blocks for cross-block
     references; ``fixed`` pins sync points of this block already consumed
-    by time (global seconds). Raises :class:`SchedulingFailed` when a
-    required part cannot be met.
+    by time (global seconds); ``occupied`` are (block id, behaviour) of the
+    character's other blocks still to run, whose resource channels this
+    block's behaviours must not take (docs/scheduler.md, "Resource
+    conflicts"). Raises :class:`SchedulingFailed` when a required part
+    cannot be met.
     """
     notes: list[BmlWarning] = list(warnings)
     models: dict[str, TimingModel] = {}
@@ -450,7 +454,7 @@ def schedule_block(
                 {sync: start + max(0.0, times[(behaviour.id, sync)]) for sync in model.syncs},
             )
         )
-    busy = _resolve_channels(block.id, behaviours, registry, notes)
+    busy = _resolve_channels(block.id, behaviours, registry, notes, occupied)
     if busy:
         skip |= busy
         behaviours = [b for b in behaviours if b.id not in busy]
@@ -476,26 +480,36 @@ def _resolve_channels(
     behaviours: list[ScheduledBehaviour],
     registry: Planner,
     notes: list[BmlWarning],
+    occupied: Sequence[tuple[str, ScheduledBehaviour]] = (),
 ) -> set[str]:
-    """Resource conflicts inside one block, by the policy of docs/scheduler.md.
+    """Resource conflicts, by the policy of docs/scheduler.md.
 
     Two behaviours that need one channel (``registry.channels``) at once:
     when one's time span contains the other's (identical timing included),
     the later in document order is removed with a warning (a required one is
     kept and the other removed; two required ones both stay, with a
     warning); when they only partly overlap, both run and a warning names
-    the overlap. Returns the ids removed. Quadratic in the behaviours that
-    share a channel, which blocks keep few of.
+    the overlap. The behaviours of other blocks (``occupied``, named
+    ``block:behaviour``) come before this block's: they are already
+    promised, so a behaviour of this block inside or around one of them is
+    the later and goes (a required one stays, with a warning). Returns the
+    ids removed. Quadratic in the behaviours that share a channel, which
+    blocks keep few of.
     """
-    by_channel: dict[str, list[ScheduledBehaviour]] = {}
+    by_channel: dict[str, list[tuple[str, ScheduledBehaviour]]] = {}
+    for other_block, scheduled in occupied:
+        for channel in sorted(registry.channels(scheduled.behaviour)):
+            by_channel.setdefault(channel, []).append((f"{other_block}:", scheduled))
     for scheduled in behaviours:
         for channel in sorted(registry.channels(scheduled.behaviour)):
-            by_channel.setdefault(channel, []).append(scheduled)
+            by_channel.setdefault(channel, []).append(("", scheduled))
     removed: set[str] = set()
     for channel, users in by_channel.items():
-        for later_index, later in enumerate(users):
-            for earlier in users[:later_index]:
-                if earlier.id in removed or later.id in removed:
+        for later_index, (later_block, later) in enumerate(users):
+            if later_block:
+                continue  # another block's: not this block's to remove
+            for earlier_block, earlier in users[:later_index]:
+                if (not earlier_block and earlier.id in removed) or later.id in removed:
                     continue
                 lo, hi = max(earlier.start, later.start), min(earlier.end, later.end)
                 if hi - lo <= CHANNEL_TOLERANCE:
@@ -508,13 +522,27 @@ def _resolve_channels(
                     later.start <= earlier.start + CHANNEL_TOLERANCE
                     and earlier.end <= later.end + CHANNEL_TOLERANCE
                 )
-                both = f"{earlier.id!r} and {later.id!r} both need the {channel} channel"
+                earlier_name = f"{earlier_block}{earlier.id}"
+                both = f"{earlier_name!r} and {later.id!r} both need the {channel} channel"
+                if earlier_block and later.behaviour.required and contains:
+                    notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                        f"{both} from {span}; {later.id!r} is required and {earlier_name!r} "
+                        "belongs to a block already planned, so both run",
+                        id=f"{block_id}:{later.id}"))  # fmt: skip
+                    continue
                 if not contains:
                     notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
                         f"{both} from {span} (a partial overlap); both run and their "
                         "motions are mixed there", id=f"{block_id}:{later.id}"))  # fmt: skip
                     continue
                 victim, kept = later, earlier
+                if earlier_block:
+                    removed.add(later.id)
+                    notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                        f"{both} from {span}; {later.id!r} is removed and {earlier_name!r} "
+                        "(a block already planned) keeps it",
+                        id=f"{block_id}:{later.id}"))  # fmt: skip
+                    continue
                 if later.behaviour.required and not earlier.behaviour.required:
                     victim, kept = earlier, later
                 elif later.behaviour.required:

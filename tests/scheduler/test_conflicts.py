@@ -129,3 +129,70 @@ def test_behaviours_on_different_channels_or_one_after_another_do_not_conflict()
         '<faceLexeme id="f2" lexeme="RAISE_BROWS" start="0" end="2"/>'
     )
     assert kept == {"g1", "g2", "h1", "s1", "f1", "f2"} and warnings == []
+
+
+# -- resource channels across blocks (a character's blocks side by side) ------------
+
+
+def session_warnings(session: Session) -> list[str]:
+    return [fb.xml for fb in session.take_feedback() if fb.kind == "warning"]
+
+
+def test_a_gaze_inside_a_gaze_of_an_earlier_block_is_removed_with_a_warning() -> None:
+    session = Session("x")
+    first = session.receive_bml(
+        f'<bml xmlns="{BML_NS}" id="b1"><gaze id="g1" target="camera" start="0" end="3"/></bml>',
+        0.0,
+    )
+    assert first is not None
+    second = session.receive_bml(
+        f'<bml xmlns="{BML_NS}" id="b2" composition="MERGE">'
+        '<gaze id="g2" target="user" start="0" end="2"/>'
+        '<head id="h1" lexeme="NOD" start="0" end="1"/></bml>',
+        0.5,
+    )
+    assert second is not None
+    assert {b.id for b in second.behaviours} == {"h1"}
+    [warning] = [w for w in session_warnings(session) if "IMPOSSIBLE_TO_SCHEDULE" in w]
+    assert 'id="b2:g2"' in warning
+    assert "'b1:g1' and 'g2' both need the gaze channel" in warning
+    assert "'g2' is removed" in warning
+
+
+def test_across_blocks_a_partial_overlap_warns_and_a_later_block_does_not_conflict() -> None:
+    session = Session("x")
+    session.receive_bml(
+        f'<bml xmlns="{BML_NS}" id="b1"><head id="h1" lexeme="SHAKE" start="0" end="2"/></bml>',
+        0.0,
+    )
+    partial = session.receive_bml(
+        f'<bml xmlns="{BML_NS}" id="b2"><head id="h2" lexeme="SHAKE" start="1" end="3"/></bml>',
+        0.0,
+    )
+    assert partial is not None and {b.id for b in partial.behaviours} == {"h2"}
+    [warning] = [w for w in session_warnings(session) if "IMPOSSIBLE_TO_SCHEDULE" in w]
+    assert "partial overlap" in warning and "'b1:h1'" in warning
+    # an appended block starts when the others end: nothing to share
+    appended = session.receive_bml(
+        f'<bml xmlns="{BML_NS}" id="b3" composition="APPEND">'
+        '<head id="h3" lexeme="SHAKE" start="0" end="1"/></bml>',
+        0.0,
+    )
+    assert appended is not None and {b.id for b in appended.behaviours} == {"h3"}
+    assert not [w for w in session_warnings(session) if "IMPOSSIBLE_TO_SCHEDULE" in w]
+
+
+def test_across_blocks_a_required_behaviour_runs_beside_the_earlier_one() -> None:
+    session = Session("x")
+    session.receive_bml(
+        f'<bml xmlns="{BML_NS}" id="b1"><gaze id="g1" target="camera" start="0" end="2"/></bml>',
+        0.0,
+    )
+    plan = session.receive_bml(
+        f'<bml xmlns="{BML_NS}" id="b2"><required>'
+        '<gaze id="g2" target="user" start="0" end="2"/></required></bml>',
+        0.0,
+    )
+    assert plan is not None and {b.id for b in plan.behaviours} == {"g2"}
+    [warning] = [w for w in session_warnings(session) if "IMPOSSIBLE_TO_SCHEDULE" in w]
+    assert "both run" in warning
