@@ -107,6 +107,7 @@ class SubscribeRequest(TypedDict):
     coded: NotRequired[bool]
     arkit: NotRequired[bool]
     audio: NotRequired[Literal["pcm16", "none"]]
+    scene: NotRequired[bool]
 
 
 # -- viewer, server to client (msgpack) ---------------------------------------
@@ -326,7 +327,7 @@ def read_subscribe_message(text: str) -> SubscribeRequest:
         if not isinstance(data["fap"], bool):
             raise BadMessage("fap must be true or false")
         request["fap"] = data["fap"]
-    for name in ("coded", "arkit"):
+    for name in ("coded", "arkit", "scene"):
         if name in data:
             if not isinstance(data[name], bool):
                 raise BadMessage(f"{name} must be true or false")

@@ -229,6 +229,11 @@ class Viewer:
     #: audio messages not yet sent, oldest first (bounded: the oldest go first)
     audio_queue: deque[bytes] = field(default_factory=deque)
     audio_dropped: int = 0
+    #: ``scene=true``: send the scene (its targets and the characters' eyes)
+    #: after each mesh and whenever it changes
+    scene: bool = False
+    #: the scene message queued and not yet sent (a newer one replaces it)
+    scene_queued: bytes | None = None
 
     def offer_audio(self, message: bytes, backlog: int) -> None:
         """Queue an audio chunk (never replaced like frames: audio must be whole);
@@ -300,6 +305,7 @@ class RealizerService:
         self._tasks: set[asyncio.Task[Any]] = set()
         self._start = 0.0  # loop time of frame 0
         self._frame = 0  # number of the next frame
+        self._scene_version = -1  # the scene version the viewers were last sent
         self._stopping = False
         self._static = _StaticFiles()
         # The clock never waits for a submitter: parsing and planning run on
@@ -449,6 +455,7 @@ class RealizerService:
             if character_tick.messages:
                 self._dispatch(character_tick.messages)
             self._deliver_frame(number, character_tick)
+        self._scene_changed()
 
     def _deliver_frame(self, number: int, character_tick: CharacterTick) -> None:
         """Hook: encode one character's frame once per format and offer it,
@@ -781,7 +788,9 @@ class RealizerService:
         viewer = Viewer(connection, character, options)
         viewer.audio = audio == "pcm16"
         viewer.wants_model = query.get("model", "false").lower() in ("1", "true", "yes")
+        viewer.scene = query.get("scene", "false").lower() in ("1", "true", "yes")
         viewer.control.extend(await self._subscription_start(character, viewer))
+        self._offer_scene(viewer, self._scene_bytes())
         self.viewers.setdefault(character, set()).add(viewer)
         self._viewers_changed(character)
         pump = self._spawn(self._pump_viewer(viewer))
@@ -851,6 +860,48 @@ class RealizerService:
         mesh, *model = await self._subscription_start(character, viewer)
         self._control(viewer, mesh)
         viewer.control.extend(model)
+        if "scene" in request:
+            viewer.scene = request["scene"]
+        viewer.scene_queued = None
+        self._offer_scene(viewer, self._scene_bytes())
+
+    # -- the scene on the viewer stream (protocols/viewer.md, protocols/scene.md) --------
+
+    def _scene_bytes(self) -> bytes:
+        """The ``scene`` viewer message of the scene as it is now."""
+        message: dict[str, Any] = {"type": "scene", "v": PROTOCOL_VERSION}
+        message.update(self.stage.scene.snapshot())
+        return codec.pack(message)
+
+    def _offer_scene(self, viewer: Viewer, data: bytes) -> None:
+        """Queue ``data`` for a viewer that asked for the scene; an unsent
+        older scene message is replaced, so a fast-moving target never fills
+        a slow viewer's control queue."""
+        if not viewer.scene or viewer.closing:
+            return
+        if viewer.scene_queued is not None:
+            for index, queued in enumerate(viewer.control):
+                if queued is viewer.scene_queued:
+                    viewer.control[index] = data
+                    viewer.scene_queued = data
+                    return
+        viewer.scene_queued = data
+        viewer.control.append(data)
+        viewer.wake.set()
+
+    def _scene_changed(self) -> None:
+        """Once per tick: when the scene changed, its new state to every
+        viewer that asked for it (encoded once)."""
+        version = self.stage.scene.version
+        if version == self._scene_version:
+            return
+        self._scene_version = version
+        data: bytes | None = None
+        for viewers in self.viewers.values():
+            for viewer in viewers:
+                if viewer.scene:
+                    data = data if data is not None else self._scene_bytes()
+                    self._offer_scene(viewer, data)
 
     def _control(self, viewer: Viewer, data: bytes) -> None:
         if len(viewer.control) >= self.limits.subscribe_backlog:

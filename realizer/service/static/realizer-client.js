@@ -330,9 +330,10 @@ export class SubmitClient {
 export class ViewClient {
   // Connect to /view and read the mesh.
   static async connect(url, { character, fap = true, vertices = "none", model, coded, arkit,
-    token, WebSocket } = {}) {
+    scene, token, WebSocket } = {}) {
     const params = { character, fap: fap ? "true" : "false", vertices, token };
     if (model !== undefined) params.model = model ? "true" : "false";
+    if (scene !== undefined) params.scene = scene ? "true" : "false";
     if (coded !== undefined) params.coded = coded ? "true" : "false";
     if (arkit !== undefined) params.arkit = arkit ? "true" : "false";
     const connection = await openSocket(endpointUrl(url, "/view", params), WebSocket, true);

@@ -85,16 +85,48 @@ function dataTexture({ data, width, height }) {
   return t;
 }
 
-// Characters side by side, and the avatar (if any) in the last place.
+// Where each character stands, along x: at its eyes' x in the server's scene (the scene
+// message, protocols/viewer.md), so characters that gaze at each other are drawn looking at
+// each other; before the scene is known, SPACING_M apart. The avatar (if any) takes the
+// next place. Centred on the watched characters.
+function places() {
+  const ids = [...state.characters.keys()];
+  const targets = state.scene ? state.scene.targets : null;
+  let xs;
+  if (targets && ids.every((id) => targets[id])) {
+    xs = ids.map((id) => targets[id][0]);
+    if (state.avatar) xs.push((xs.length ? Math.max(...xs) : 0) + state.scene.spacing);
+  } else {
+    const count = ids.length + (state.avatar ? 1 : 0);
+    xs = [...Array(count).keys()].map((i) => i * SPACING_M);
+  }
+  const mid = xs.length ? (Math.min(...xs) + Math.max(...xs)) / 2 : 0;
+  return xs.map((x) => x - mid);
+}
+
 function layout() {
+  const xs = places();
   let i = 0;
-  const count = state.characters.size + (state.avatar ? 1 : 0);
   for (const c of state.characters.values()) {
-    if (c.group) c.group.position.x = (i - (count - 1) / 2) * SPACING_M;
+    if (c.group) c.group.position.x = xs[i];
     i++;
   }
-  if (state.avatar) state.avatar.root.position.x = (i - (count - 1) / 2) * SPACING_M;
+  if (state.avatar) state.avatar.root.position.x = xs[i];
+  state.width = xs.length ? Math.max(...xs) - Math.min(...xs) : 0;
   state.dirty = true;
+}
+
+function onScene(m) {
+  const ids = m.characters || [];
+  // the distance between neighbours in the scene, for the avatar's place
+  const xs = ids.map((id) => (m.targets[id] || [0])[0]).sort((a, b) => a - b);
+  let spacing = SPACING_M;
+  for (let i = 1; i < xs.length; i++) spacing = Math.max(spacing, xs[i] - xs[i - 1]);
+  const before = state.width;
+  state.scene = { version: m.version, characters: ids, targets: m.targets, spacing };
+  layout();
+  const first = state.characters.values().next().value;
+  if (first && first.neutral && state.width !== before) frameCamera(first.neutral);
 }
 state.layout = () => {
   layout();
@@ -160,9 +192,13 @@ function frameCamera(neutral) {
   const centre = box.getCenter(new THREE.Vector3());
   const size = box.getSize(new THREE.Vector3()).length();
   controls.target.copy(centre);
-  const places = state.characters.size + (state.avatar ? 1 : 0);
+  const count = state.characters.size + (state.avatar ? 1 : 0);
   controls.target.x = 0;
-  camera.position.set(0, centre.y, centre.z + size * 1.55 * Math.max(1, places * 0.7));
+  // far enough back for one face, or for the whole row (the vertical field of view is
+  // 28 degrees; the row's width over the aspect ratio, with a face's width of margin)
+  const aspect = camera.aspect || 1;
+  const row = ((state.width || 0) + size) / aspect / (2 * Math.tan((14 * Math.PI) / 180));
+  camera.position.set(0, centre.y, centre.z + Math.max(size * 1.55 * Math.max(1, count * 0.7), row));
   camera.near = size / 100; camera.far = size * 50;
   camera.updateProjectionMatrix();
   controls.update();
@@ -240,6 +276,8 @@ function onViewerMessage(c, m) {
     if (state.audio) state.audio.push(c.id, m, serverNow());
   } else if (m.type === "audioCut") {
     if (state.audio) state.audio.cut(c.id, m.t);
+  } else if (m.type === "scene") {
+    onScene(m);
   } else if (m.type === "error") {
     log("warning", `viewer of ${c.id}: ${m.reason}`);
   }
@@ -282,7 +320,8 @@ function watchCharacter(id) {
   const c = { id, view: null, mesh: null, model: null, faps: new Float64Array(68), frames: 0,
               decoder: new FapStreamDecoder() };
   state.characters.set(id, c);
-  const options = { character: id, model: true, vertices: "none", token: token() || undefined };
+  const options = { character: id, model: true, vertices: "none", scene: true,
+                    token: token() || undefined };
   if (state.stream === "coded") { options.coded = true; options.fap = false; }
   if (state.stream === "arkit" || (state.avatarOffered && state.characters.size === 1)) {
     options.arkit = true;
