@@ -379,9 +379,11 @@ def mix(
         if not animation.start <= now <= animation.end:
             continue
         blend = getattr(animation, "blend", "add")
-        add_to = getattr(animation, "add_to", None) if blend == "add" else None
-        if add_to is not None:  # the same sum, on the animation's own FAPs only
-            add_to(values, mask, now)
+        # The fast path: an animation may apply the same rule itself, on its
+        # own FAPs only (add_to for "add", replace_in for "replace").
+        apply = getattr(animation, "add_to" if blend == "add" else "replace_in", None)
+        if apply is not None:
+            apply(values, mask, now)
             continue
         target, weights = animation.evaluate(now)
         active = weights > 0.0
