@@ -15,8 +15,8 @@ Lip sync, per character-frame at 60 fps, per backend (the phonemes differ):
 the articulation's two animations evaluated and mixed, plus the one-off
 sampling of the speech spread over its frames (goal < 50 microseconds).
 
-Audio to frame on the viewer stream (eSpeak NG, the service's default): a
-real service on a free loopback port, a real viewer; for a speech the offset
+Audio to frame on the viewer stream, per backend: a real service on a free
+loopback port, a real viewer; for a speech the offset
 between the first audible sample (audio chunk time plus sample index) and
 the first frame whose mouth opens, both on the server clock. Measured: the
 sound starts about when the mouth has opened (the mouth starts moving the
@@ -134,7 +134,9 @@ def _lip_sync(quick: bool, name: str = "espeak", engine: object = None) -> None:
                 f"over {frames} frames")  # fmt: skip
 
 
-async def _viewer_offset() -> tuple[float, float] | None:
+async def _viewer_offset(
+    speech: dict[str, str] | None = None, wait: float = 4.0
+) -> tuple[float, float] | None:
     import numpy as np
     from websockets.asyncio.client import connect
 
@@ -146,9 +148,10 @@ async def _viewer_offset() -> tuple[float, float] | None:
 
     face = load_face()
     service = RealizerService(
-        ServiceConfig(host="127.0.0.1", port=0, fps=FPS), Stage(session_factory(face)),
+        ServiceConfig(host="127.0.0.1", port=0, fps=FPS),
+        Stage(session_factory(face, speech=speech)),
         face_assets(face),
-    )  # fmt: skip
+    )
     await service.start()
     try:
         viewer = await connect(f"ws://127.0.0.1:{service.port}/view")
@@ -158,7 +161,7 @@ async def _viewer_offset() -> tuple[float, float] | None:
         await submitter.send(BLOCK)
         audio_onset = mouth_onset = None
         loop = asyncio.get_running_loop()
-        until = loop.time() + 4.0
+        until = loop.time() + wait  # the block is scheduled once its speech is synthesised
         while loop.time() < until and (audio_onset is None or mouth_onset is None):
             try:
                 message = codec.unpack(await asyncio.wait_for(viewer.recv(), 1.0))  # type: ignore[arg-type]
@@ -211,18 +214,26 @@ def run(quick: bool = False) -> None:
         from realizer.engines.speech import SpeechEngine
 
         _lip_sync(quick, "piper", SpeechEngine(piper))
+    _offset("espeak", None, 4.0)
+    if piper is not None:
+        _offset("piper", {"tts": "piper", "model": model}, 60.0)
+
+
+def _offset(name: str, speech: dict[str, str] | None, wait: float) -> None:
     try:
-        measured = asyncio.run(asyncio.wait_for(_viewer_offset(), 30.0))
+        measured = asyncio.run(asyncio.wait_for(_viewer_offset(speech, wait), wait + 30.0))
     except TimeoutError:
         measured = None
     if measured is None:
-        skipped("audio to frame offset on the viewer stream", "no audio or mouth seen in time")
+        skipped(f"{name}: audio to frame offset on the viewer stream",
+                "no audio or mouth seen in time")  # fmt: skip
         return
     offset, lead = measured
     note = f"the visual lead is {lead * 1e3:.0f} ms; one frame is {1e3 / FPS:.1f} ms"
-    figure("viewer stream: first sound minus first mouth opening", offset * 1e3, "ms", note=note)
-    figure("viewer stream: |sound - picture| beyond the visual lead", abs(offset - lead) * 1e3,
-           "ms", goal=45.0)  # fmt: skip
+    figure(f"{name}: viewer stream: first sound minus first mouth opening", offset * 1e3, "ms",
+           note=note)  # fmt: skip
+    figure(f"{name}: viewer stream: |sound - picture| beyond the visual lead",
+           abs(offset - lead) * 1e3, "ms", goal=45.0)  # fmt: skip
 
 
 if __name__ == "__main__":
