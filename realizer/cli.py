@@ -119,12 +119,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except ImportError as exc:
         # an optional dependency is missing: name the extra that brings it
-        from realizer.extras import MissingExtraError, explain
+        from realizer.extras import explain
 
-        feature = f"realizer {args.command.replace('_', '-')}"
-        missing = exc if isinstance(exc, MissingExtraError) else None
-        if missing is None and isinstance(exc, ModuleNotFoundError):
-            missing = explain(exc, feature)
+        command = args.command.replace("_", "-")
+        missing = explain(exc, f"realizer {command}", command)
         if missing is None:
             raise
         print(f"realizer: error: {missing}", file=sys.stderr)

@@ -16,7 +16,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "realizer"
 
 #: Lower index = lower layer. A module may import from its own layer and below.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("realizer.errors", "realizer"),  # the package root only holds its version
+    # the package root only holds its version; extras names missing optional imports
+    ("realizer.errors", "realizer", "realizer.extras"),
     ("realizer.bml_parser",),
     ("realizer.face",),
     ("realizer.scheduler",),

@@ -1,18 +1,27 @@
 """The built wheel installs into a fresh virtual environment and runs there.
 
-What a user gets from ``pip install realizer``: the core (parser, scheduler,
-session, client) with no extra, then ``pip install 'realizer[all]'``. The test
-builds the wheel from this checkout, installs it into a new venv (pip's cache
-makes the second run quick) and runs the commands as a user would, from a
-directory outside the checkout so nothing of the source tree can leak in.
+What a user gets from ``pip install realizer``: the core (parser, session,
+client, the command line) with no extra, then ``pip install
+'realizer[all]'``. The test builds the wheel from this checkout, installs it
+into new venvs and runs the commands as a user would, from a directory
+outside the checkout so nothing of the source tree can leak in.
 
-Slow (a minute or two: the core's numpy and scipy, then the extras); it needs
-PyPI or a warm pip cache, and skips when neither can install the core.
+The core is installed with ``pip --no-index --find-links`` from a wheelhouse
+(``.cache/wheels/core``, gitignored): the first run fills it with ``pip
+download`` (PyPI or the configured index, as any install), later runs need
+no network, and an install with no index proves the core needs nothing
+beyond what it declares. The core venv's size is bounded by
+:data:`CORE_VENV_MIB` (README.md, "Installing it elsewhere", quotes it).
+
+Slow (a minute or two: numpy and lxml, then the extras into a second venv);
+it skips when the core's dependencies can be found neither in the
+wheelhouse nor on an index.
 """
 
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
 import venv
@@ -22,6 +31,15 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "bml" / "01_smile.xml"
+WHEELHOUSE = ROOT / ".cache" / "wheels" / "core"
+
+#: The most a venv with the core alone may take, in MiB (``du -sk`` / 1024,
+#: the venv's own pip and setuptools, 25 MiB, included): 118 MiB measured
+#: with numpy 2.4.6 (72), lxml 6.1 (12), websockets, msgpack and the realizer
+#: (5). scipy 1.17 adds 142 MiB: the core with it was 260 MiB.
+CORE_VENV_MIB = 140
+#: Heavy distributions the core must not pull in.
+HEAVY = ("scipy", "matplotlib", "PyOpenGL", "Pillow", "trimesh", "tqdm", "psutil", "nats-py")
 
 pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]
 
@@ -51,17 +69,57 @@ def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return found
 
 
-@pytest.fixture(scope="module")
-def fresh_venv(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A new venv with the wheel's core installed (no extra)."""
-    directory = tmp_path_factory.mktemp("venv")
+def _new_venv(directory: Path) -> Path:
     venv.EnvBuilder(with_pip=True, clear=True).create(directory)
-    python = directory / "bin" / "python"
-    done = _run([str(python), "-m", "pip", "install", "-q", str(wheel)], cwd=directory)
-    if done.returncode != 0 and "No matching distribution" in done.stderr:
-        pytest.skip(f"the core's dependencies cannot be installed here: {done.stderr[-500:]}")
+    return directory / "bin" / "python"
+
+
+def _install_offline(python: Path, wheel: Path) -> subprocess.CompletedProcess[str]:
+    return _run(
+        [str(python), "-m", "pip", "install", "-q", "--no-index", "--find-links",
+         str(WHEELHOUSE), str(wheel)],
+        cwd=python.parent,
+        PIP_FIND_LINKS="",
+        PIP_EXTRA_INDEX_URL="",
+        PIP_CONFIG_FILE=os.devnull,
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def core_venv(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A new venv with the wheel's core alone, installed with no index."""
+    directory = tmp_path_factory.mktemp("core-venv")
+    python = _new_venv(directory)
+    done = _install_offline(python, wheel)
+    if done.returncode != 0:  # an empty or stale wheelhouse: fill it once
+        WHEELHOUSE.mkdir(parents=True, exist_ok=True)
+        fetched = _run(
+            [str(python), "-m", "pip", "download", "-q", "--dest", str(WHEELHOUSE), str(wheel)],
+            cwd=directory,
+        )
+        if fetched.returncode != 0:
+            pytest.skip(f"the core's dependencies cannot be downloaded: {fetched.stderr[-500:]}")
+        done = _install_offline(python, wheel)
     assert done.returncode == 0, done.stderr
     return directory
+
+
+@pytest.fixture(scope="module")
+def full_venv(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Another new venv with the wheel and every extra (``[all]``)."""
+    directory = tmp_path_factory.mktemp("full-venv")
+    python = _new_venv(directory)
+    done = _run([str(python), "-m", "pip", "install", "-q", f"{wheel}[all]"], cwd=directory)
+    if done.returncode != 0 and "No matching distribution" in done.stderr:
+        pytest.skip(f"the extras cannot be installed here: {done.stderr[-500:]}")
+    assert done.returncode == 0, done.stderr
+    return directory
+
+
+def size_mib(directory: Path) -> float:
+    """``du -sk``'s figure for ``directory``, in MiB."""
+    done = subprocess.run(["du", "-sk", str(directory)], capture_output=True, text=True)
+    return int(done.stdout.split()[0]) / 1024
 
 
 def realizer(venv_dir: Path, *args: str) -> subprocess.CompletedProcess[str]:
@@ -80,44 +138,85 @@ def test_the_wheel_carries_types_licence_and_benchmarks(wheel: Path) -> None:
     assert not any(n.startswith("tests/") for n in names)
 
 
-def test_the_core_alone_parses_schedules_and_names_missing_extras(fresh_venv: Path) -> None:
-    python = str(fresh_venv / "bin" / "python")
-    installed = _run([python, "-m", "pip", "list", "--format=freeze"], cwd=fresh_venv).stdout
-    for heavy in ("matplotlib", "PyOpenGL", "Pillow", "trimesh", "tqdm"):
-        assert f"{heavy}==" not in installed, f"the core pulled {heavy}"
+def test_the_core_alone_is_small_and_parses_and_names_missing_extras(core_venv: Path) -> None:
+    python = str(core_venv / "bin" / "python")
+    installed = _run([python, "-m", "pip", "list", "--format=freeze"], cwd=core_venv).stdout
+    for heavy in HEAVY:
+        assert f"{heavy.lower()}==" not in installed.lower(), f"the core pulled {heavy}"
+    size = size_mib(core_venv)
+    print(f"core venv: {size:.0f} MiB (du -sk), bound {CORE_VENV_MIB}; {installed.split()}")
+    assert size <= CORE_VENV_MIB
 
-    helped = realizer(fresh_venv, "--help")
+    helped = realizer(core_venv, "--help")
     assert helped.returncode == 0 and "schedule" in helped.stdout
 
-    parsed = realizer(fresh_venv, "parse", str(EXAMPLE))
+    parsed = realizer(core_venv, "parse", str(EXAMPLE))
     assert parsed.returncode == 0, parsed.stderr
     assert "faceLexeme" in parsed.stdout
 
-    scheduled = realizer(fresh_venv, "schedule", "--json", str(EXAMPLE))
-    assert scheduled.returncode == 0, scheduled.stderr
-    assert '"start"' in scheduled.stdout
-
-    client = _run([python, "-c", "import realizer.client as c; print(c.SubmitClient)"], fresh_venv)
-    assert client.returncode == 0, client.stderr
-
-    plotted = realizer(fresh_venv, "plot", str(EXAMPLE), "-o", "t.png")
+    plotted = realizer(core_venv, "plot", str(EXAMPLE), "-o", "t.png")
     assert plotted.returncode == 2
     assert "'plots' extra" in plotted.stderr and "pip install 'realizer[plots]'" in plotted.stderr
     assert "Traceback" not in plotted.stderr
 
-    rendered = realizer(fresh_venv, "face", "--faps", "3=400", "-o", "f.png")
+    rendered = realizer(core_venv, "face", "--faps", "3=400", "-o", "f.png")
     assert rendered.returncode == 2
     assert "'render' extra" in rendered.stderr and "Traceback" not in rendered.stderr
 
-    listed = realizer(fresh_venv, "bench", "--list")
+    served = realizer(core_venv, "serve", "--port", "0")
+    assert served.returncode == 2
+    assert "pip install 'realizer[serve]'" in served.stderr and "Traceback" not in served.stderr
+
+    listed = realizer(core_venv, "bench", "--list")
     assert listed.returncode == 0, listed.stderr
     assert {"parser", "scheduler", "service"} <= set(listed.stdout.split())
 
 
-def test_with_the_extras_every_command_runs(fresh_venv: Path, wheel: Path) -> None:
-    python = str(fresh_venv / "bin" / "python")
-    done = _run([python, "-m", "pip", "install", "-q", f"{wheel}[all]"], cwd=fresh_venv)
+def test_the_core_schedules_a_small_block_or_names_the_schedule_extra(core_venv: Path) -> None:
+    """Until the scheduler imports scipy only for big blocks, scheduling without
+    it says which extra to install; once it does, a small block schedules."""
+    python = str(core_venv / "bin" / "python")
+    lazy = _run([python, "-c", "import realizer.scheduler.solver"], core_venv)
+    scheduled = realizer(core_venv, "schedule", "--json", str(EXAMPLE))
+    assert "Traceback" not in scheduled.stderr
+    if lazy.returncode == 0:
+        assert scheduled.returncode == 0, scheduled.stderr
+        assert '"start"' in scheduled.stdout
+    else:
+        assert "the 'schedule' extra (no module named 'scipy')" in lazy.stderr
+        assert scheduled.returncode == 2
+        assert scheduled.stderr.startswith(
+            "realizer: error: realizer schedule needs the 'schedule' extra"
+        )
+        assert "pip install 'realizer[schedule]'" in scheduled.stderr
+
+
+def test_the_core_client_says_clearly_that_nothing_listens(core_venv: Path) -> None:
+    with socket.socket() as probe:  # a port where nothing listens
+        probe.bind(("127.0.0.1", 0))
+        free = probe.getsockname()[1]
+    code = f"""
+import sys
+from realizer.client import ClientError, ServerUnavailable, SubmitClient
+try:
+    SubmitClient("ws://127.0.0.1:{free}", character="Alice")
+except ServerUnavailable as error:
+    assert isinstance(error, ClientError)
+    print("unavailable:", error)
+assert "scipy" not in sys.modules
+"""
+    done = _run([str(core_venv / "bin" / "python"), "-c", code], core_venv)
     assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("unavailable:") and str(free) in done.stdout
+
+
+def test_with_the_extras_every_command_runs(full_venv: Path) -> None:
+    fresh_venv = full_venv
+    print(f"[all] venv: {size_mib(full_venv):.0f} MiB (du -sk)")
+
+    scheduled = realizer(fresh_venv, "schedule", "--json", str(EXAMPLE))
+    assert scheduled.returncode == 0, scheduled.stderr
+    assert '"start"' in scheduled.stdout
 
     listed = realizer(fresh_venv, "bench", "--list")
     assert listed.returncode == 0 and "deform" in listed.stdout.split()

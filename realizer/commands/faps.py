@@ -118,6 +118,8 @@ def recording_for(args: Any, command: str) -> BlockRecording | None:
 
     try:
         recording = record_block(args.file.read_bytes(), args.fps, args.max_seconds)
+    except ImportError:  # a missing extra: the command line names it
+        raise
     except (OSError, ValueError, RealizerError) as error:
         print(error_line(command, error, args.file), file=sys.stderr)
         return None

@@ -193,6 +193,9 @@ def run(args: argparse.Namespace) -> int:
     if args.print_config:
         print(to_toml(settings), end="")
         return 0
+    from realizer.extras import require
+
+    require("serve", "realizer serve")  # scipy: the scheduler and the face's deformation
     logs.configure(settings.log_level, "json" if settings.log_format == "json" else "text")
 
     from realizer.service.assets import face_assets, load_face, session_factory

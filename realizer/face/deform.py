@@ -48,8 +48,8 @@ import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 
+from realizer.extras import missing_module
 from realizer.face.errors import FaceError
 from realizer.face.facedef import FaceDefMesh
 from realizer.face.faps import FAP_COUNT, FAP_TABLE, as_fap_vector, clamp_unidirectional
@@ -64,6 +64,11 @@ from realizer.face.model import (
     SmoothDeformer,
     TransformDeformer,
 )
+
+try:  # scipy comes with the [serve] and [render] extras, not with the core
+    import scipy.sparse as sp
+except ModuleNotFoundError as _error:
+    raise missing_module(_error, "serve", "the face's mesh deformation") from _error
 
 #: Influences below this are treated as zero (no entry in the sparse matrix).
 MIN_INFLUENCE = 1e-9

@@ -54,18 +54,23 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from scipy.linalg.lapack import dgesv as _dgesv
-from scipy.sparse.csgraph import (
-    NegativeCycleError,
-    breadth_first_order,
-    connected_components,
-    shortest_path,
-)
 
 from realizer.errors import RealizerError
+from realizer.extras import missing_module
 from realizer.scheduler.timing import Phase
+
+try:  # scipy is the [schedule] extra: the core install has none
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+    from scipy.linalg.lapack import dgesv as _dgesv
+    from scipy.sparse.csgraph import (
+        NegativeCycleError,
+        breadth_first_order,
+        connected_components,
+        shortest_path,
+    )
+except ModuleNotFoundError as _error:
+    raise missing_module(_error, "schedule", "the scheduler (realizer.scheduler)") from _error
 
 #: A sync point: (behaviour id, sync name). ``BLOCK_START`` is time 0.
 Key = tuple[str, str]

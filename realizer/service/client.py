@@ -145,8 +145,8 @@ def _lost(error: ConnectionClosed) -> ConnectionLost:
     return ConnectionLost(frame.code, frame.reason)
 
 
-def _opening_error(error: BaseException) -> ClientError | None:
-    """The client error for an exception raised while connecting, or None."""
+def _opening_error(error: BaseException, uri: str) -> ClientError | None:
+    """The client error for an exception raised while connecting to ``uri``, or None."""
     if isinstance(error, InvalidStatus):
         return _refused(error)
     if isinstance(error, InvalidURI):
@@ -156,9 +156,9 @@ def _opening_error(error: BaseException) -> ClientError | None:
     if isinstance(error, InvalidHandshake):
         return ProtocolError(f"the opening handshake failed: {error}")
     if isinstance(error, TimeoutError):
-        return ServerUnavailable(f"no answer within {OPEN_TIMEOUT} s")
+        return ServerUnavailable(f"{uri}: no answer within {OPEN_TIMEOUT} s")
     if isinstance(error, OSError):
-        return ServerUnavailable(f"cannot connect: {error.strerror or error}")
+        return ServerUnavailable(f"cannot connect to {uri}: {error.strerror or error}")
     return None
 
 
@@ -327,7 +327,7 @@ def _open(uri: str) -> ClientConnection:
         direct: ClientConnection = connect(uri, **options)
         return direct
     except Exception as error:
-        translated = _opening_error(error)
+        translated = _opening_error(error, uri)
         if translated is None:
             raise
         raise translated from None
@@ -546,7 +546,7 @@ async def _async_open(uri: str) -> AsyncConnection:
     try:
         return await async_connect(uri, open_timeout=OPEN_TIMEOUT, max_size=None, compression=None)
     except Exception as error:
-        translated = _opening_error(error)
+        translated = _opening_error(error, uri)
         if translated is None:
             raise
         raise translated from None

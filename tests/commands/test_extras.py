@@ -72,3 +72,61 @@ def test_a_module_not_found_late_is_explained_too() -> None:
 def test_require_passes_when_the_extra_is_installed() -> None:
     pytest.importorskip("matplotlib")
     extras.require("plots", "realizer plot")
+
+
+def test_serve_without_scipy_names_the_serve_extra(
+    without: Callable[..., None], capsys: pytest.CaptureFixture[str]
+) -> None:
+    without("scipy")
+    assert main(["serve", "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("realizer: error: realizer serve needs the 'serve' extra")
+    assert "(no module named 'scipy'): pip install 'realizer[serve]'" in err
+
+
+def test_serve_print_config_needs_no_extra(
+    without: Callable[..., None], capsys: pytest.CaptureFixture[str]
+) -> None:
+    without("scipy")
+    assert main(["serve", "--print-config"]) == 0
+    assert capsys.readouterr().out.startswith("[serve]")
+
+
+def test_a_module_that_needs_scipy_raises_the_missing_extra_error() -> None:
+    error = ModuleNotFoundError("No module named 'scipy'", name="scipy.sparse")
+    raised = extras.missing_module(error, "schedule", "the scheduler")
+    assert isinstance(raised, extras.MissingExtraError) and isinstance(raised, ImportError)
+    assert str(raised) == (
+        "the scheduler needs the 'schedule' extra (no module named 'scipy'): "
+        "pip install 'realizer[schedule]'"
+    )
+    # a module the extra does not bring is a broken install, not a missing extra
+    other = ModuleNotFoundError("No module named 'numpy'", name="numpy")
+    assert extras.missing_module(other, "schedule", "the scheduler") is other
+
+
+def test_the_command_names_its_own_extra_for_a_module_several_extras_bring() -> None:
+    from_module = extras.MissingExtraError("schedule", "scipy", "the scheduler")
+    for command, extra in [("serve", "serve"), ("schedule", "schedule"), ("plot", "plots")]:
+        named = extras.explain(from_module, f"realizer {command}", command)
+        assert named is not None and named.extra == extra
+        assert str(named).startswith(f"realizer {command} needs the {extra!r} extra")
+    late = ModuleNotFoundError("No module named 'scipy'", name="scipy")
+    named = extras.explain(late, "realizer render", "render")
+    assert named is not None and named.extra == "render"
+    assert extras.explain(ImportError("cannot import name x"), "realizer serve", "serve") is None
+
+
+def test_every_extra_that_brings_scipy_declares_it() -> None:
+    optional = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]
+    core = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"]
+    assert not any(dependency.startswith("scipy") for dependency in core)
+    for extra, modules in extras.EXTRAS.items():
+        if "scipy" in modules:
+            assert any(d.startswith("scipy") for d in optional[extra]), extra
+    from realizer.cli import SUMMARIES
+
+    for command, extra in extras.COMMAND_EXTRAS.items():
+        assert command in SUMMARIES and extra in extras.EXTRAS, command

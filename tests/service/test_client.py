@@ -85,9 +85,10 @@ def test_an_interrupted_block_ends_interrupted(server: ServeProcess) -> None:
     assert states == ["interrupted"]
 
 
-def test_nothing_listening_raises_server_unavailable() -> None:
-    with pytest.raises(ServerUnavailable, match="cannot connect"):
-        SubmitClient(f"ws://127.0.0.1:{free_port()}")
+def test_nothing_listening_raises_server_unavailable_naming_the_url() -> None:
+    port = free_port()
+    with pytest.raises(ServerUnavailable, match=f"cannot connect to ws://127.0.0.1:{port}/bml"):
+        SubmitClient(f"ws://127.0.0.1:{port}")
 
 
 def test_the_asyncio_client_runs_a_block_and_watches_frames(server: ServeProcess) -> None:
