@@ -1,5 +1,6 @@
-"""The Docker image, checked by reading (no Docker engine runs the tests) and
-its health check run against a real server."""
+"""The Docker image, checked by reading (no Docker engine runs the tests, and
+none ran where the image was written: it has never been built) and its
+health check run against a real server."""
 
 from __future__ import annotations
 
@@ -44,3 +45,59 @@ def test_the_health_check_follows_the_port_on_the_command_line(tmp_path: Path) -
         cmdline.write_bytes(b"/opt/realizer/bin/realizer\0serve\0--port\0%d\0" % server.port)
         assert check.main(str(cmdline)) == 0
     assert check.main(str(cmdline)) == 1  # the server is gone
+
+
+def _stages() -> list[str]:
+    """The Dockerfile's stages, each from its FROM line to the next."""
+    return re.split(r"^(?=FROM )", DOCKERFILE, flags=re.MULTILINE)[1:]
+
+
+def test_the_runtime_stage_runs_unprivileged_with_writable_caches_and_no_build_tools() -> None:
+    build, runtime = _stages()
+    assert build.startswith("FROM ${PYTHON_IMAGE} AS build")
+    assert runtime.startswith("FROM ${PYTHON_IMAGE}\n")
+    # the build happens in the first stage only: no pip install, no wheel build later
+    assert "pip install" in build and "pip install" not in runtime
+    assert "python -m build" in build and "python -m build" not in runtime
+    assert "rm -rf /var/lib/apt/lists/*" in runtime
+    user = re.findall(r"^USER (\S+)$", runtime, re.MULTILINE)
+    assert user == ["realizer"] and "--uid 10001" in runtime
+    # matplotlib's and fontconfig's caches, and the working folder, are in
+    # /tmp, which any uid (the image's or --user's) may write
+    for variable in ("MPLCONFIGDIR", "XDG_CACHE_HOME"):
+        found = re.search(rf"{variable}=(\S+)", runtime)
+        assert found is not None and found.group(1).startswith("/tmp/"), variable
+    assert re.search(r"^WORKDIR /tmp$", runtime, re.MULTILINE)
+    # the image checks at build time that bench finds its benchmarks
+    assert "realizer bench --list" in runtime
+    # ffmpeg (render's videos), OSMesa (offscreen GL), eSpeak NG (speech)
+    for package in ("ffmpeg", "libosmesa6", "libespeak-ng1"):
+        assert package in runtime
+
+
+def test_the_readme_render_example_writes_as_the_user_who_runs_it() -> None:
+    readme = (ROOT / "docker" / "README.md").read_text(encoding="utf-8")
+    (example,) = [
+        block for block in readme.split("```") if "realizer" in block and " render " in block
+    ]
+    assert '--user "$(id -u):$(id -g)"' in example and "-v " in example
+    assert "**Not built yet.**" in readme and "no Docker engine" in readme  # said plainly
+
+
+def test_every_service_of_the_cluster_compose_uses_the_port_following_health_check() -> None:
+    import yaml
+
+    compose = yaml.safe_load((ROOT / "docker" / "compose.cluster.yml").read_text("utf-8"))
+    realizers = {
+        name: service
+        for name, service in compose["services"].items()
+        if service.get("image") == "realizer"
+    }
+    assert {"worker-1", "worker-2", "gateway-1", "gateway-2"} <= set(realizers)
+    for name, service in realizers.items():
+        # no check of its own with a port written in: the image's follows --port
+        assert "healthcheck" not in service, name
+        command = service["command"]
+        port = command[command.index("--port") + 1]
+        for published in service.get("ports", []):
+            assert published.rpartition(":")[2] == port, (name, published)

@@ -21,6 +21,7 @@ wheelhouse nor on an index.
 from __future__ import annotations
 
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -135,6 +136,8 @@ def test_the_wheel_carries_types_licence_and_benchmarks(wheel: Path) -> None:
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     assert "realizer/benchmarks/bench_parser.py" in names
     assert "realizer/service/static/index.html" in names
+    assert "realizer/service/static/realizer-client.js" in names
+    assert "realizer/examples/bml/01_smile.xml" in names  # what bench parser times
     assert not any(n.startswith("tests/") for n in names)
 
 
@@ -223,6 +226,10 @@ def test_with_the_extras_every_command_runs(full_venv: Path) -> None:
 
     quick = realizer(fresh_venv, "bench", "convert", "--quick")
     assert quick.returncode == 0, quick.stderr
+    parser = realizer(fresh_venv, "bench", "parser", "--quick")
+    assert parser.returncode == 0, parser.stderr
+    documents = re.search(r"^corpus \+ examples: (\d+) documents", parser.stdout, re.MULTILINE)
+    assert documents is not None and int(documents.group(1)) >= 20, parser.stdout
 
     plotted = realizer(fresh_venv, "plot", str(EXAMPLE), "-o", "t.png")
     assert plotted.returncode == 0, plotted.stderr

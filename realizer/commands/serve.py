@@ -4,9 +4,10 @@ One process serves many characters, each a session made on first use with
 the face: submitters send BML to ws://HOST:PORT/bml, viewers watch frames on
 ws://HOST:PORT/view, and a browser shows the face at http://HOST:PORT/.
 Without tokens it binds to a loopback address only. Stops cleanly on
-SIGINT or SIGTERM (exit 0). Settings come from flags, a TOML file (--config;
---print-config shows the result) and, for tokens, the environment
-(REALIZER_SUBMIT_TOKEN, REALIZER_VIEW_TOKEN). Logs go to stderr, one line per
+SIGINT or SIGTERM (exit 0). Settings come from flags, a TOML file (--config:
+every flag but the tokens has a key; --print-config shows the result as a
+file --config reads) and, for tokens, the environment (REALIZER_SUBMIT_TOKEN,
+REALIZER_VIEW_TOKEN). Logs go to stderr, one line per
 connection, refused handshake and block state at the default level, info.
 """
 
@@ -66,7 +67,6 @@ def register(subparsers: Any) -> None:
     parser.add_argument(
         "--stomp-layout",
         choices=("asap", "greta", "vhmsg"),
-        default="asap",
         help="topic names and message layout: AsapRealizer's (default), Greta's, or the "
         "Virtual Human messaging SmartBody uses",
     )
@@ -75,9 +75,9 @@ def register(subparsers: Any) -> None:
         "--stomp-feedback-topic", metavar="DEST", help="feedback destination (/topic/...)"
     )
     add_idle_options(parser)
-    parser.add_argument(
-        "--tts", choices=("espeak", "piper"), default="espeak", help="speech backend (espeak)"
-    )
+    # None: not given, so the settings file or the default decides
+    parser.set_defaults(idle=None, seed=None)
+    parser.add_argument("--tts", choices=("espeak", "piper"), help="speech backend (espeak)")
     parser.add_argument(
         "--voice", default=None, help="default voice: a language tag such as en-gb (en)"
     )
@@ -139,9 +139,10 @@ def with_avatar(assets: Any, path: str) -> Any:
     return replace(assets, avatar=data, avatar_missing=report.missing)
 
 
-def stomp_bridge(args: argparse.Namespace) -> Any:
+def stomp_bridge(args: Any) -> Any:
     """The STOMP bridge of ``--stomp`` (needs the ``stomp`` extra); the
-    broker's login comes from the environment only."""
+    broker's login comes from the environment only. ``args``: the command
+    line's namespace or the effective settings (the same names)."""
     from realizer.extras import require
 
     require("stomp", "realizer serve --stomp")
@@ -180,6 +181,16 @@ def run(args: argparse.Namespace) -> int:
             "fps": args.fps,
             "face": args.face,
             "character": args.character,
+            "avatar": args.avatar,
+            "idle": args.idle,
+            "seed": args.seed,
+            "tts": args.tts,
+            "voice": args.voice,
+            "piper_model": args.piper_model,
+            "stomp": args.stomp,
+            "stomp_layout": args.stomp_layout,
+            "stomp_bml_topic": args.stomp_bml_topic,
+            "stomp_feedback_topic": args.stomp_feedback_topic,
             "submit_token": args.submit_token,
             "view_token": args.view_token,
             "log_level": args.log_level,
@@ -213,16 +224,20 @@ def run(args: argparse.Namespace) -> int:
             limits=limits,
         )
         face = load_face(settings.face)
-        speech = {"tts": args.tts, "voice": args.voice or "", "model": args.piper_model or ""}
-        make_session = session_factory(face, idle=args.idle, seed=args.seed, speech=speech)
+        speech = {
+            "tts": settings.tts,
+            "voice": settings.voice or "",
+            "model": settings.piper_model or "",
+        }
+        make_session = session_factory(face, idle=settings.idle, seed=settings.seed, speech=speech)
         # The first session loads the engines' data (tens of ms): do it now,
         # not on the clock's time when the first character appears.
         make_session(settings.character)
         stage = Stage(make_session, limits, default_character=settings.character)
         assets = face_assets(face)
-        if args.avatar:
-            assets = with_avatar(assets, args.avatar)
-        attachments = [stomp_bridge(args)] if args.stomp else []
+        if settings.avatar:
+            assets = with_avatar(assets, settings.avatar)
+        attachments = [stomp_bridge(settings)] if settings.stomp else []
     except (RealizerError, ValueError, OSError, ImportError) as exc:
         print(error_line("serve", exc), file=sys.stderr)
         return 2

@@ -1,7 +1,8 @@
 """``realizer serve``'s settings: defaults, a TOML file, flags, the environment.
 
 A configuration file (``realizer serve --config serve.toml``) holds what an
-operator keeps under version control::
+operator keeps under version control; every setting of ``realizer serve``
+but the tokens has a key::
 
     [serve]
     host = "0.0.0.0"
@@ -9,6 +10,14 @@ operator keeps under version control::
     fps = 60
     face = "faces/doctor.xml"      # relative to the file
     character = "doctor"
+    avatar = "avatars/doctor.glb"  # relative to the file
+    idle = true                    # blinks, saccades, breathing, head motion
+    seed = 0                       # of the idle motion
+    tts = "espeak"                 # espeak or piper
+    voice = "en-gb"
+    piper_model = "voices/en_GB-alba-medium.onnx"  # relative to the file
+    stomp = "stomp://127.0.0.1:61613"  # login: $REALIZER_STOMP_LOGIN, ..._PASSCODE
+    stomp_layout = "asap"          # asap, greta or vhmsg (protocols/stomp.md)
     log_level = "info"             # debug, info, warning, error
     log_format = "json"            # text or json
 
@@ -19,8 +28,9 @@ Tokens are secrets, so a file never holds them: they come from the
 environment (``REALIZER_SUBMIT_TOKEN``, ``REALIZER_VIEW_TOKEN``) or, less
 safely (other users see command lines), from ``--submit-token`` and
 ``--view-token``. A flag given on the command line wins over the file, and
-the file over the defaults. ``realizer serve --print-config`` prints the
-result as TOML with the tokens masked.
+the file over the defaults (for ``idle``, the default is on unless
+``REALIZER_IDLE=0``). ``realizer serve --print-config`` prints the result as
+TOML, a file ``--config`` reads back, with the tokens masked.
 
 Errors read ``path:line:col: error: message``.
 """
@@ -40,6 +50,12 @@ from realizer.service.limits import DEFAULT_LIMITS
 from realizer.service.logs import LEVELS
 
 TOKEN_VARIABLES = {"submit_token": "REALIZER_SUBMIT_TOKEN", "view_token": "REALIZER_VIEW_TOKEN"}
+#: Settings that name a file: a path in a settings file is relative to it.
+PATHS = ("face", "avatar", "piper_model")
+#: The speech backends (docs/speech.md).
+TTS = ("espeak", "piper")
+#: The STOMP bridge's layouts (protocols/stomp.md).
+STOMP_LAYOUTS = ("asap", "greta", "vhmsg")
 _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
 
 
@@ -50,6 +66,16 @@ class ServeSettings:
     fps: float = 60.0
     face: str | None = None
     character: str = "default"
+    avatar: str | None = None
+    idle: bool = True
+    seed: int = 0
+    tts: str = "espeak"
+    voice: str | None = None
+    piper_model: str | None = None
+    stomp: str | None = None
+    stomp_layout: str = "asap"
+    stomp_bml_topic: str | None = None
+    stomp_feedback_topic: str | None = None
     log_level: str = "info"
     log_format: str = "text"
     limits: dict[str, int] = field(default_factory=dict)
@@ -63,6 +89,16 @@ _TYPES: dict[str, tuple[type, ...]] = {
     "fps": (int, float),
     "face": (str,),
     "character": (str,),
+    "avatar": (str,),
+    "idle": (bool,),
+    "seed": (int,),
+    "tts": (str,),
+    "voice": (str,),
+    "piper_model": (str,),
+    "stomp": (str,),
+    "stomp_layout": (str,),
+    "stomp_bml_topic": (str,),
+    "stomp_feedback_topic": (str,),
     "log_level": (str,),
     "log_format": (str,),
 }
@@ -74,8 +110,9 @@ def _error(path: Path | str, message: str, line: int = 1, column: int = 1) -> Co
 
 def _line_of(text: str, key: str) -> int:
     """The line where ``key`` is set (for messages), or 1."""
+    setting = re.compile(rf"\s*\[?\s*(?:serve\.)?{re.escape(key)}\s*[=\].]")
     for number, line in enumerate(text.splitlines(), 1):
-        if line.strip().startswith(key):
+        if setting.match(line):
             return number
     return 1
 
@@ -115,11 +152,13 @@ def read_file(path: Path) -> dict[str, Any]:
         if key not in _TYPES:
             known = ", ".join(sorted([*_TYPES, "limits"]))
             raise _error(path, f"unknown setting {key!r}; known: {known}", line)
-        if not isinstance(value, _TYPES[key]) or isinstance(value, bool):
+        wanted = _TYPES[key]
+        if not isinstance(value, wanted) or (isinstance(value, bool) and bool not in wanted):
             raise _error(path, f"{key} has the wrong type ({type(value).__name__})", line)
         out[key] = value
-    if "face" in out:
-        out["face"] = str((path.parent / out["face"]).resolve())
+    for key in PATHS:
+        if key in out:
+            out[key] = str((path.parent / out[key]).resolve())
     return out
 
 
@@ -159,6 +198,8 @@ def resolve(
     for key, variable in TOKEN_VARIABLES.items():
         if merged.get(key) is None:
             merged[key] = environ.get(variable) or None
+    if "idle" not in merged:
+        merged["idle"] = environ.get("REALIZER_IDLE", "1") != "0"
     settings = ServeSettings(**merged)
     if settings.log_level not in LEVELS:
         raise ConfigError(f"log_level must be one of {', '.join(LEVELS)}")
@@ -168,6 +209,10 @@ def resolve(
         raise ConfigError(f"port {settings.port} is not between 0 and 65535")
     if not (math.isfinite(settings.fps) and 0 < settings.fps <= 1000):
         raise ConfigError(f"fps {settings.fps} is not between 0 and 1000")
+    if settings.tts not in TTS:
+        raise ConfigError(f"tts must be one of {', '.join(TTS)}")
+    if settings.stomp_layout not in STOMP_LAYOUTS:
+        raise ConfigError(f"stomp_layout must be one of {', '.join(STOMP_LAYOUTS)}")
     return settings
 
 
@@ -182,7 +227,11 @@ def _toml_value(value: Any) -> str:
 def to_toml(settings: ServeSettings) -> str:
     """The effective settings as a TOML file; tokens shown only as set or not."""
     lines = ["[serve]"]
-    for name in ("host", "port", "fps", "face", "character", "log_level", "log_format"):
+    for name in (
+        "host", "port", "fps", "face", "character", "avatar", "idle", "seed",
+        "tts", "voice", "piper_model", "stomp", "stomp_layout", "stomp_bml_topic",
+        "stomp_feedback_topic", "log_level", "log_format",
+    ):  # fmt: skip
         value = getattr(settings, name)
         if value is None:
             lines.append(f"# {name}: not set")

@@ -129,3 +129,92 @@ def test_a_peers_exception_loses_its_traceback_but_a_bug_keeps_it() -> None:
 def test_tokens_are_masked_in_logged_paths() -> None:
     assert logs.without_token("/bml?format=json&token=abc") == "/bml?format=json&token=***"
     assert logs.without_token("/view") == "/view"
+
+
+def test_every_serve_setting_but_the_tokens_has_a_key_and_print_config_reads_back(
+    tmp_path: Path,
+) -> None:
+    (tmp_path / "voices").mkdir()
+    config = tmp_path / "serve.toml"
+    config.write_text(
+        "[serve]\n"
+        'avatar = "doctor.glb"\n'
+        "idle = false\n"
+        "seed = 7\n"
+        'tts = "piper"\n'
+        'voice = "en-gb"\n'
+        'piper_model = "voices/alba.onnx"\n'
+        'character = "doctor"\n'
+    )
+    done = serve("--config", str(config), "--seed", "3", "--print-config")
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert f'avatar = "{tmp_path / "doctor.glb"}"' in out  # relative to the file
+    assert f'piper_model = "{tmp_path / "voices" / "alba.onnx"}"' in out
+    assert "idle = false" in out and "seed = 3" in out  # the flag wins over the file
+    assert 'tts = "piper"' in out and 'voice = "en-gb"' in out and 'character = "doctor"' in out
+    # what --print-config prints is a settings file that gives the same settings
+    printed = tmp_path / "printed.toml"
+    printed.write_text(out)
+    again = serve("--config", str(printed), "--print-config")
+    assert again.returncode == 0, again.stderr
+    assert again.stdout == out
+    # every option of `realizer serve --help` but the tokens, --limit (the
+    # [serve.limits] table), --config and --print-config is a key of the file
+    helped = serve("--help").stdout
+    options = {word.strip(",[]").split("=")[0] for word in helped.split() if word.startswith("--")}
+    options -= {"--help", "--config", "--print-config", "--limit", "--no-idle"}
+    options -= {"--submit-token", "--view-token"}
+    keys = {line.removeprefix("# ").split(" = ")[0].split(":")[0] for line in out.splitlines()}
+    assert {option[2:].replace("-", "_") for option in options} <= keys
+    assert len(options) >= 13
+
+
+def test_idle_comes_from_the_file_the_flag_or_the_environment(tmp_path: Path) -> None:
+    quiet = tmp_path / "quiet.toml"
+    quiet.write_text("[serve]\nidle = false\n")
+    assert "idle = false" in serve("--config", str(quiet), "--print-config").stdout
+    assert "idle = true" in serve("--config", str(quiet), "--idle", "--print-config").stdout
+    assert "idle = true" in serve("--print-config").stdout
+    off = serve("--print-config", env={"REALIZER_IDLE": "0"}).stdout
+    assert "idle = false" in off
+    wrong = tmp_path / "wrong.toml"
+    wrong.write_text('[serve]\nseed = 1\nidle = "yes"\n')
+    with pytest.raises(ConfigError, match=r"wrong\.toml:3:1: error: idle has the wrong type"):
+        read_file(wrong)
+    wrong.write_text("[serve]\nseed = true\n")
+    with pytest.raises(ConfigError, match=r"wrong\.toml:2:1: error: seed has the wrong type"):
+        read_file(wrong)
+    with pytest.raises(ConfigError, match="tts must be one of espeak, piper"):
+        resolve({"tts": "festival"}, {}, {})
+
+
+def _moving_frames(url: str, count: int) -> int:
+    from realizer.client import ViewClient
+
+    with ViewClient(url, character="Quiet") as view:
+        return sum(1 for frame in view.frames(count=count, timeout=30 * UNIT) if view.faps(frame))
+
+
+@pytest.mark.slow
+def test_the_files_idle_setting_reaches_the_faces_and_a_flag_overrides_it(
+    tmp_path: Path,
+) -> None:
+    quiet = tmp_path / "quiet.toml"
+    quiet.write_text("[serve]\nidle = false\nfps = 30\n")
+    with serve_process("--config", str(quiet)) as running:
+        assert _moving_frames(running.url, 45) == 0  # nothing submitted, no idle motion
+    with serve_process("--config", str(quiet), "--idle") as running:
+        assert _moving_frames(running.url, 45) > 0  # breathing and head motion
+
+
+def test_the_readmes_settings_file_is_one_serve_reads(tmp_path: Path) -> None:
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    (example,) = [
+        block[len("toml\n") :] for block in readme.split("```") if block.startswith("toml\n")
+    ]
+    config = tmp_path / "serve.toml"
+    config.write_text(example)
+    settings = resolve(read_file(config), {}, {})
+    assert settings.avatar == str(tmp_path / "avatars" / "doctor.glb")
+    assert settings.seed == 7 and settings.idle and settings.limits == {"viewers": 200}
