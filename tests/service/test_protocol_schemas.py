@@ -133,3 +133,15 @@ def test_a_real_session_sends_only_messages_the_schemas_allow() -> None:
     check("interrupt-request", json.loads(SubmitterProtocol.interrupt("long")))
     check("subscribe-request", {"type": "subscribe", "character": "Bob", "vertices": "float32"})
     assert seen["welcome"] == 1 and seen["feedback"] > 5 and seen["block"] == 5
+
+
+def test_health_is_what_the_readme_shows_and_nothing_more() -> None:
+    readme = (PROTOCOLS / "README.md").read_text(encoding="utf-8")
+    after = readme.split("`GET /health`:", 1)[1]
+    example = json.loads(after.split("```json\n", 1)[1].split("```", 1)[0])
+    check("health", example)
+    # an internal field that nobody documented is refused, at the top and in clock
+    with pytest.raises(jsonschema.ValidationError, match="Additional properties"):
+        check("health", {**example, "planner_threads": 4})
+    with pytest.raises(jsonschema.ValidationError, match="Additional properties"):
+        check("health", {**example, "clock": {**example["clock"], "queue": []}})
