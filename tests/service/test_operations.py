@@ -145,6 +145,8 @@ def test_every_serve_setting_but_the_tokens_has_a_key_and_print_config_reads_bac
         'voice = "en-gb"\n'
         'piper_model = "voices/alba.onnx"\n'
         'character = "doctor"\n'
+        'stomp = "stomp://127.0.0.1:61613"\n'
+        'stomp_layout = "greta"\n'
     )
     done = serve("--config", str(config), "--seed", "3", "--print-config")
     assert done.returncode == 0, done.stderr
@@ -153,6 +155,7 @@ def test_every_serve_setting_but_the_tokens_has_a_key_and_print_config_reads_bac
     assert f'piper_model = "{tmp_path / "voices" / "alba.onnx"}"' in out
     assert "idle = false" in out and "seed = 3" in out  # the flag wins over the file
     assert 'tts = "piper"' in out and 'voice = "en-gb"' in out and 'character = "doctor"' in out
+    assert 'stomp = "stomp://127.0.0.1:61613"' in out and 'stomp_layout = "greta"' in out
     # what --print-config prints is a settings file that gives the same settings
     printed = tmp_path / "printed.toml"
     printed.write_text(out)
@@ -167,7 +170,7 @@ def test_every_serve_setting_but_the_tokens_has_a_key_and_print_config_reads_bac
     options -= {"--submit-token", "--view-token"}
     keys = {line.removeprefix("# ").split(" = ")[0].split(":")[0] for line in out.splitlines()}
     assert {option[2:].replace("-", "_") for option in options} <= keys
-    assert len(options) >= 13
+    assert len(options) >= 17
 
 
 def test_idle_comes_from_the_file_the_flag_or_the_environment(tmp_path: Path) -> None:
@@ -187,6 +190,11 @@ def test_idle_comes_from_the_file_the_flag_or_the_environment(tmp_path: Path) ->
         read_file(wrong)
     with pytest.raises(ConfigError, match="tts must be one of espeak, piper"):
         resolve({"tts": "festival"}, {}, {})
+    with pytest.raises(ConfigError, match="stomp_layout must be one of asap, greta, vhmsg"):
+        resolve({"stomp_layout": "smartbody"}, {}, {})
+    wrong.write_text("[serve]\nstomp_layout = 1\nstomp = 2\n")
+    with pytest.raises(ConfigError, match=r"wrong\.toml:2:1: error: stomp_layout has the wrong"):
+        read_file(wrong)
 
 
 def _moving_frames(url: str, count: int) -> int:
