@@ -22,6 +22,7 @@ already planned, given by the caller as fixed global times.
 
 from __future__ import annotations
 
+import heapq
 import itertools
 import math
 from collections.abc import Mapping, Sequence
@@ -138,12 +139,17 @@ class _Builder:
     fixed: Mapping[Key, float]
     warnings: list[BmlWarning]
     order: dict[Source, int] = field(default_factory=dict)
-    #: every constraint of the last build as a difference edge ``t_v - t_u <= w``
-    #: with what it comes from in the user's words, to explain a conflict
+    #: every constraint of the last recording build as a difference edge
+    #: ``t_v - t_u <= w`` with what it comes from in the user's words, to
+    #: explain a conflict
     edges: list[_Edge] = field(default_factory=list)
     #: behaviours that a required part refers to: removing one would drop a
     #: required reference, so a conflict that involves them fails the block
     pinned: set[str] = field(default_factory=set)
+    #: whether :meth:`build` records :attr:`edges` and :attr:`pinned`: only
+    #: a block in conflict needs them, so the first build of every block
+    #: skips them (most blocks solve at once) and a conflict builds again
+    record: bool = False
 
     def warn(self, kind: WarningType, message: str, target: str = "") -> None:
         self.warnings.append(
@@ -152,11 +158,12 @@ class _Builder:
 
     def target(self, ref: SyncRef, holder: str) -> tuple[Key, float] | None:
         """The sync point a reference names (block-relative), or None with a warning."""
-        if ref.is_time:
+        behaviour = ref.behaviour
+        if behaviour is None:  # a time
             return BLOCK_START, ref.offset
-        assert ref.behaviour is not None and ref.sync is not None
+        assert ref.sync is not None
         if ref.block is not None and ref.block != self.block.id:
-            key = (ref.block, ref.behaviour, _sync_name(ref))
+            key = (ref.block, behaviour, _sync_name(ref))
             if key not in self.external:
                 self.warn(
                     WarningType.NO_SUCH_TARGET,
@@ -166,12 +173,12 @@ class _Builder:
                 return None
             # A fixed global time, expressed relative to this block's start.
             return BLOCK_START, self.external[key] - self.start + ref.offset
-        if ref.behaviour == "bml":
+        if behaviour == "bml":
             if ref.sync != "start":
                 self.warn(WarningType.NO_SUCH_TARGET, f"{holder}: bml has only a start", holder)
                 return None
             return BLOCK_START, ref.offset
-        model = self.models.get(ref.behaviour)
+        model = self.models.get(behaviour)
         if model is None:
             self.warn(
                 WarningType.NO_SUCH_TARGET,
@@ -179,21 +186,23 @@ class _Builder:
                 holder,
             )
             return None
-        name = _sync_name(ref)
+        name = ref.sync if ref.iteration is None else _sync_name(ref)
         if name not in model.syncs:
             self.warn(
                 WarningType.NO_SUCH_TARGET,
-                f"{holder}: {ref.behaviour!r} has no sync point {name!r}",
+                f"{holder}: {behaviour!r} has no sync point {name!r}",
                 holder,
             )
             return None
-        return (ref.behaviour, name), ref.offset
+        return (behaviour, name), ref.offset
 
     def equal(
         self, problem: Problem, a: Key, ka: float, b: Key, kb: float, source: Source, label: str
     ) -> None:
         """``t_a + ka == t_b + kb``, remembered with its label."""
         problem.equal(a, ka, b, kb, source)
+        if not self.record:
+            return
         self.edges.append(_Edge(b, a, kb - ka, source, label))
         self.edges.append(_Edge(a, b, ka - kb, source, label))
         if source.required:
@@ -204,6 +213,8 @@ class _Builder:
     ) -> None:
         """``t_a + ka <= t_b + kb``, remembered with its label."""
         problem.order(a, ka, b, kb, source)
+        if not self.record:
+            return
         self.edges.append(_Edge(b, a, kb - ka, source, label))
         if source.required:
             self.pinned.update(key[0] for key in (a, b) if key != BLOCK_START)
@@ -211,35 +222,34 @@ class _Builder:
     def build(self, skip: set[str], dropped_constraints: set[Source]) -> Problem:
         problem = Problem()
         block = self.block
+        record = self.record
         self.edges = []
         self.pinned = set()
+        models, target = self.models, self.target
         for behaviour in block.behaviours:
-            model = self.models.get(behaviour.id)
-            if model is None or behaviour.id in skip:
+            behaviour_id = behaviour.id
+            model = models.get(behaviour_id)
+            if model is None or behaviour_id in skip:
                 continue
-            source = self._source("behaviour", behaviour.id, behaviour.required)
-            problem.add_behaviour(behaviour.id, model.syncs, model.phases, source)
-            for (first, second), phase in zip(
-                itertools.pairwise(model.syncs), model.phases, strict=True
-            ):
-                a, b = (behaviour.id, first), (behaviour.id, second)
-                self.edges.append(_Edge(b, a, -phase.minimum, source, _phase_label(
-                    behaviour.id, first, second, phase.minimum, "at least")))  # fmt: skip
-                if math.isfinite(phase.maximum):
-                    self.edges.append(_Edge(a, b, phase.maximum, source, _phase_label(
-                        behaviour.id, first, second, phase.maximum, "at most")))  # fmt: skip
-            refs = list(behaviour.sync_refs)
+            source = self._source("behaviour", behaviour_id, behaviour.required)
+            problem.add_behaviour(behaviour_id, model.syncs, model.phases, source)
+            if record:
+                self._phase_edges(behaviour_id, model, source)
+            refs: Sequence[tuple[str, SyncRef]] = behaviour.sync_refs
             if behaviour.speech is not None:
-                refs += [(r.id, r.ref) for r in behaviour.speech.runs
-                         if not isinstance(r, str) and r.ref is not None]  # fmt: skip
+                refs = [*refs, *((r.id, r.ref) for r in behaviour.speech.runs
+                                 if not isinstance(r, str) and r.ref is not None)]  # fmt: skip
             for sync, ref in refs:
-                target = self.target(ref, behaviour.id)
-                if target is None or (target[0][0] in skip):
+                found = target(ref, behaviour_id)
+                if found is None or (found[0][0] in skip):
                     continue
-                key, offset = target
+                key, offset = found
                 # t_sync = t_target + offset
-                self.equal(problem, (behaviour.id, sync), 0.0, key, offset, source,
-                           f'{behaviour.id} {sync}="{ref.raw.strip()}"')  # fmt: skip
+                if record:
+                    self.equal(problem, (behaviour_id, sync), 0.0, key, offset, source,
+                               f'{behaviour_id} {sync}="{ref.raw.strip()}"')  # fmt: skip
+                else:
+                    problem.equal((behaviour_id, sync), 0.0, key, offset, source)
         for index, constraint in enumerate(block.constraints):
             source = self._source("constraint", constraint.id or f"#{index + 1}",
                                   constraint.required)  # fmt: skip
@@ -272,6 +282,18 @@ class _Builder:
                            f"{key[0]}:{key[1]} already passed at {time:g} s")  # fmt: skip
         return problem
 
+    def _phase_edges(self, behaviour_id: str, model: TimingModel, source: Source) -> None:
+        """The phase bounds of one behaviour as labelled edges."""
+        for (first, second), phase in zip(
+            itertools.pairwise(model.syncs), model.phases, strict=True
+        ):
+            a, b = (behaviour_id, first), (behaviour_id, second)
+            self.edges.append(_Edge(b, a, -phase.minimum, source, _phase_label(
+                behaviour_id, first, second, phase.minimum, "at least")))  # fmt: skip
+            if math.isfinite(phase.maximum):
+                self.edges.append(_Edge(a, b, phase.maximum, source, _phase_label(
+                    behaviour_id, first, second, phase.maximum, "at most")))  # fmt: skip
+
     def explain(self, conflict: frozenset[Source]) -> list[str]:
         """The constraints that conflict, in the user's words, in cycle order."""
         edges = [e for e in self.edges if e.source in conflict]
@@ -282,7 +304,8 @@ class _Builder:
 
     def _source(self, kind: str, ident: str, required: bool) -> Source:
         source = Source(kind, ident, required)
-        self.order.setdefault(source, len(self.order))
+        if self.record:  # the document order of sources, for choosing what to drop
+            self.order.setdefault(source, len(self.order))
         return source
 
 
@@ -396,7 +419,13 @@ def schedule_block(
             times = solve(problem)
             break
         except Infeasible as exc:
-            del notes[mark:]  # the reference warnings are given again on the next build
+            # The edges and pins that explain a conflict, from the same build
+            # again; its reference warnings are given again on the next build.
+            del notes[mark:]
+            builder.record = True
+            builder.build(skip, dropped_constraints)
+            builder.record = False
+            del notes[mark:]
             victim = _choose_victim(exc.conflict, builder.order, builder.pinned)
             why = "; ".join(builder.explain(exc.conflict)) or exc.detail
             if victim is None:
@@ -493,8 +522,10 @@ def _resolve_channels(
     ``block:behaviour``) come before this block's: they are already
     promised, so a behaviour of this block inside or around one of them is
     the later and goes (a required one stays, with a warning). Returns the
-    ids removed. Quadratic in the behaviours that share a channel, which
-    blocks keep few of.
+    ids removed. The overlapping pairs are found by a sweep over start
+    times (:func:`_overlapping`), so the cost grows with the behaviours and
+    the pairs that do overlap, not with every pair that shares a channel (a
+    block of 10,000 behaviours has thousands of nods).
     """
     by_channel: dict[str, list[tuple[str, ScheduledBehaviour]]] = {}
     for other_block, scheduled in occupied:
@@ -505,56 +536,88 @@ def _resolve_channels(
             by_channel.setdefault(channel, []).append(("", scheduled))
     removed: set[str] = set()
     for channel, users in by_channel.items():
-        for later_index, (later_block, later) in enumerate(users):
+        if len(users) < 2:
+            continue
+        spans = [(min(u.times.values()), max(u.times.values())) for _, u in users]
+        for later_index, earlier_index in _overlapping(spans):
+            later_block, later = users[later_index]
+            earlier_block, earlier = users[earlier_index]
             if later_block:
                 continue  # another block's: not this block's to remove
-            for earlier_block, earlier in users[:later_index]:
-                if (not earlier_block and earlier.id in removed) or later.id in removed:
-                    continue
-                lo, hi = max(earlier.start, later.start), min(earlier.end, later.end)
-                if hi - lo <= CHANNEL_TOLERANCE:
-                    continue
-                span = f"{lo:.3f} to {hi:.3f} s"
-                contains = (
-                    earlier.start <= later.start + CHANNEL_TOLERANCE
-                    and later.end <= earlier.end + CHANNEL_TOLERANCE
-                ) or (
-                    later.start <= earlier.start + CHANNEL_TOLERANCE
-                    and earlier.end <= later.end + CHANNEL_TOLERANCE
-                )
-                earlier_name = f"{earlier_block}{earlier.id}"
-                both = f"{earlier_name!r} and {later.id!r} both need the {channel} channel"
-                if earlier_block and later.behaviour.required and contains:
-                    notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
-                        f"{both} from {span}; {later.id!r} is required and {earlier_name!r} "
-                        "belongs to a block already planned, so both run",
-                        id=f"{block_id}:{later.id}"))  # fmt: skip
-                    continue
-                if not contains:
-                    notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
-                        f"{both} from {span} (a partial overlap); both run and their "
-                        "motions are mixed there", id=f"{block_id}:{later.id}"))  # fmt: skip
-                    continue
-                victim, kept = later, earlier
-                if earlier_block:
-                    removed.add(later.id)
-                    notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
-                        f"{both} from {span}; {later.id!r} is removed and {earlier_name!r} "
-                        "(a block already planned) keeps it",
-                        id=f"{block_id}:{later.id}"))  # fmt: skip
-                    continue
-                if later.behaviour.required and not earlier.behaviour.required:
-                    victim, kept = earlier, later
-                elif later.behaviour.required:
-                    notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
-                        f"{both} from {span}; both are required, so both run",
-                        id=f"{block_id}:{later.id}"))  # fmt: skip
-                    continue
-                removed.add(victim.id)
+            if (not earlier_block and earlier.id in removed) or later.id in removed:
+                continue
+            (earlier_start, earlier_end), (later_start, later_end) = (
+                spans[earlier_index],
+                spans[later_index],
+            )
+            lo, hi = max(earlier_start, later_start), min(earlier_end, later_end)
+            span = f"{lo:.3f} to {hi:.3f} s"
+            contains = (
+                earlier_start <= later_start + CHANNEL_TOLERANCE
+                and later_end <= earlier_end + CHANNEL_TOLERANCE
+            ) or (
+                later_start <= earlier_start + CHANNEL_TOLERANCE
+                and earlier_end <= later_end + CHANNEL_TOLERANCE
+            )
+            earlier_name = f"{earlier_block}{earlier.id}"
+            both = f"{earlier_name!r} and {later.id!r} both need the {channel} channel"
+            if earlier_block and later.behaviour.required and contains:
                 notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
-                    f"{both} from {span}; {victim.id!r} is removed and {kept.id!r} keeps it",
-                    id=f"{block_id}:{victim.id}"))  # fmt: skip
+                    f"{both} from {span}; {later.id!r} is required and {earlier_name!r} "
+                    "belongs to a block already planned, so both run",
+                    id=f"{block_id}:{later.id}"))  # fmt: skip
+                continue
+            if not contains:
+                notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                    f"{both} from {span} (a partial overlap); both run and their "
+                    "motions are mixed there", id=f"{block_id}:{later.id}"))  # fmt: skip
+                continue
+            victim, kept = later, earlier
+            if earlier_block:
+                removed.add(later.id)
+                notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                    f"{both} from {span}; {later.id!r} is removed and {earlier_name!r} "
+                    "(a block already planned) keeps it",
+                    id=f"{block_id}:{later.id}"))  # fmt: skip
+                continue
+            if later.behaviour.required and not earlier.behaviour.required:
+                victim, kept = earlier, later
+            elif later.behaviour.required:
+                notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                    f"{both} from {span}; both are required, so both run",
+                    id=f"{block_id}:{later.id}"))  # fmt: skip
+                continue
+            removed.add(victim.id)
+            notes.append(BmlWarning(WarningType.IMPOSSIBLE_TO_SCHEDULE,
+                f"{both} from {span}; {victim.id!r} is removed and {kept.id!r} keeps it",
+                id=f"{block_id}:{victim.id}"))  # fmt: skip
     return removed
+
+
+def _overlapping(spans: list[tuple[float, float]]) -> list[tuple[int, int]]:
+    """Pairs ``(later, earlier)`` of indices (earlier < later) whose spans overlap.
+
+    Overlap as :func:`_resolve_channels` means it: the shared part is longer
+    than :data:`CHANNEL_TOLERANCE`. Sorted by ``later``, then ``earlier``
+    (document order), which is the order the policy takes them in. A sweep
+    by start time: a span that ends before the current start can overlap
+    neither it nor any span starting later, and leaves the open set.
+    """
+    pairs: list[tuple[int, int]] = []
+    open_ends: list[tuple[float, int]] = []  # a heap of (end, index)
+    open_set: set[int] = set()
+    for index in sorted(range(len(spans)), key=lambda i: spans[i][0]):
+        start, end = spans[index]
+        while open_ends and open_ends[0][0] < start:
+            open_set.discard(heapq.heappop(open_ends)[1])
+        for other in open_set:
+            other_start, other_end = spans[other]
+            if min(end, other_end) - max(start, other_start) > CHANNEL_TOLERANCE:
+                pairs.append((index, other) if other < index else (other, index))
+        open_set.add(index)
+        heapq.heappush(open_ends, (end, index))
+    pairs.sort()
+    return pairs
 
 
 def _choose_victim(

@@ -49,9 +49,10 @@ from __future__ import annotations
 
 import itertools
 import math
+import operator
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -59,18 +60,8 @@ from realizer.errors import RealizerError
 from realizer.extras import missing_module
 from realizer.scheduler.timing import Phase
 
-try:  # scipy is the [schedule] extra: the core install has none
+if TYPE_CHECKING:  # scipy is imported by the sparse path only (_scipy)
     import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-    from scipy.linalg.lapack import dgesv as _dgesv
-    from scipy.sparse.csgraph import (
-        NegativeCycleError,
-        breadth_first_order,
-        connected_components,
-        shortest_path,
-    )
-except ModuleNotFoundError as _error:
-    raise missing_module(_error, "schedule", "the scheduler (realizer.scheduler)") from _error
 
 #: A sync point: (behaviour id, sync name). ``BLOCK_START`` is time 0.
 Key = tuple[str, str]
@@ -126,18 +117,58 @@ class _Relation:
     source: Source
 
 
+#: A phase's numbers as the solvers read them: weight, preferred, minimum, maximum.
+_PHASE_FIELDS = operator.attrgetter("weight", "preferred", "minimum", "maximum")
+
+
 @dataclass(slots=True)
 class Problem:
-    """Sync points, phases and constraints of one block (or several)."""
+    """Sync points, phases and constraints of one block (or several).
 
-    keys: dict[Key, None] = field(default_factory=dict)
+    ``keys`` maps every sync point to its index (the order of first
+    mention; :data:`BLOCK_START` is 0). The lists ``phases``,
+    ``equalities``, ``orderings`` and ``starts`` say what was added, in
+    the caller's terms; the methods also keep the same in indices (the
+    private lists), which is what the solvers read, so a problem is only
+    ever changed through the methods.
+    """
+
+    keys: dict[Key, int] = field(default_factory=dict)
     phases: list[tuple[Key, Key, Phase, Source]] = field(default_factory=list)
     equalities: list[_Relation] = field(default_factory=list)
     orderings: list[_Relation] = field(default_factory=list)
     starts: list[Key] = field(default_factory=list)
+    # The same in key indices, in step with the lists above.
+    _phase_a: list[int] = field(default_factory=list, repr=False)
+    _phase_b: list[int] = field(default_factory=list, repr=False)
+    #: (weight, preferred, minimum, maximum) of each phase
+    _phase_rows: list[tuple[float, float, float, float]] = field(default_factory=list, repr=False)
+    #: t_a - t_b = d of each equality: a, b, d
+    _tie_a: list[int] = field(default_factory=list, repr=False)
+    _tie_b: list[int] = field(default_factory=list, repr=False)
+    _tie_d: list[float] = field(default_factory=list, repr=False)
+    #: t_upper - t_lower >= minimum of each ordering
+    _order_upper: list[int] = field(default_factory=list, repr=False)
+    _order_lower: list[int] = field(default_factory=list, repr=False)
+    _order_min: list[float] = field(default_factory=list, repr=False)
+    _starts: list[int] = field(default_factory=list, repr=False)
+    #: the behaviour (its number in add order) each key belongs to, or -1;
+    #: phases tie a behaviour's keys into one cost component
+    _owner: list[int] = field(default_factory=list, repr=False)
+    #: pairs of behaviours that share a key (so one cost component)
+    _links: list[tuple[int, int]] = field(default_factory=list, repr=False)
+    _behaviours: int = field(default=0, repr=False)
 
     def __post_init__(self) -> None:
-        self.keys.setdefault(BLOCK_START, None)
+        self._index(BLOCK_START)
+
+    def _index(self, key: Key) -> int:
+        keys = self.keys
+        index = keys.get(key)
+        if index is None:
+            index = keys[key] = len(keys)
+            self._owner.append(-1)
+        return index
 
     def add_behaviour(
         self, behaviour_id: str, syncs: tuple[str, ...], phases: Iterable[Phase], source: Source
@@ -147,20 +178,40 @@ class Problem:
         phases = tuple(phases)
         if len(phases) != len(keys) - 1:
             raise ValueError(f"{len(keys)} sync points need {len(keys) - 1} phases")
-        self.keys.update(dict.fromkeys(keys))  # known keys keep their place
+        chain = self._behaviours
+        self._behaviours += 1
+        known = self.keys
+        first = len(known)
+        if known.keys().isdisjoint(keys) and len(set(keys)) == len(keys):
+            indices: list[int] = list(range(first, first + len(keys)))
+            known.update(zip(keys, indices, strict=True))
+            self._owner.extend([chain] * len(keys))
+        else:  # known keys keep their place
+            indices = [self._index(key) for key in keys]
+            owner = self._owner
+            for index in indices:
+                if owner[index] >= 0 and owner[index] != chain:
+                    self._links.append((owner[index], chain))
+                owner[index] = chain
         self.starts.append(keys[0])
+        self._starts.append(indices[0])
         self.phases.extend(zip(keys, keys[1:], phases, itertools.repeat(source)))
+        self._phase_a.extend(indices[:-1])
+        self._phase_b.extend(indices[1:])
+        self._phase_rows.extend(map(_PHASE_FIELDS, phases))
 
     def equal(self, a: Key, ka: float, b: Key, kb: float, source: Source) -> None:
         """``t_a + ka == t_b + kb``."""
-        self.keys.setdefault(a, None)
-        self.keys.setdefault(b, None)
+        self._tie_a.append(self._index(a))
+        self._tie_b.append(self._index(b))
+        self._tie_d.append(kb - ka)
         self.equalities.append(_Relation(a, ka, b, kb, source))
 
     def order(self, a: Key, ka: float, b: Key, kb: float, source: Source) -> None:
         """``t_a + ka <= t_b + kb``."""
-        self.keys.setdefault(a, None)
-        self.keys.setdefault(b, None)
+        self._order_lower.append(self._index(a))
+        self._order_upper.append(self._index(b))
+        self._order_min.append(ka - kb)
         self.orderings.append(_Relation(a, ka, b, kb, source))
 
     def fix(self, key: Key, time: float, source: Source) -> None:
@@ -246,36 +297,50 @@ def solve(problem: Problem) -> dict[Key, float]:
     return solve_sparse(problem)
 
 
+def _scipy() -> Any:
+    """scipy, which only the sparse path needs: the ``schedule`` extra.
+
+    Without it, blocks up to :data:`DENSE_KEYS` sync points are scheduled
+    by the dense path (numpy only); a bigger one raises
+    :class:`realizer.extras.MissingExtraError` naming the extra.
+    """
+    try:
+        import scipy.sparse
+        import scipy.sparse.csgraph
+        import scipy.sparse.linalg
+    except ModuleNotFoundError as error:
+        raise missing_module(
+            error,
+            "schedule",
+            f"scheduling a block of more than {DENSE_KEYS} sync points (the sparse solver)",
+        ) from error
+    return scipy
+
+
 def solve_sparse(problem: Problem) -> dict[Key, float]:
     """:func:`solve` on sparse matrices, vectorised: the path for big blocks."""
-    keys = list(problem.keys)
-    key_index = {key: index for index, key in enumerate(keys)}
-    # One pass over the phases and one over the equalities (Python loops
-    # over thousands of tuples are a large part of a solve).
-    table = np.array(
-        [(key_index[a], key_index[b], p.weight, p.preferred, p.minimum, p.maximum)
-         for a, b, p, _ in problem.phases],
-        dtype=float,
-    ).reshape(-1, 6)  # fmt: skip
-    phase_a = table[:, 0].astype(np.int64)
-    phase_b = table[:, 1].astype(np.int64)
-    phase_w, phase_p, phase_min, phase_max = table[:, 2], table[:, 3], table[:, 4], table[:, 5]
-    ties = np.array(
-        [(key_index[r.a], key_index[r.b], r.kb - r.ka) for r in problem.equalities], dtype=float
-    ).reshape(-1, 3)
+    scipy = _scipy()
+    sp, csgraph = scipy.sparse, scipy.sparse.csgraph
+    keys = problem.keys
+    n_keys = len(keys)
+    # The problem's index lists become arrays in one call each.
+    table = np.array(problem._phase_rows, dtype=float).reshape(-1, 4)
+    phase_a = np.array(problem._phase_a, dtype=np.int64)
+    phase_b = np.array(problem._phase_b, dtype=np.int64)
+    phase_w, phase_p, phase_min, phase_max = table[:, 0], table[:, 1], table[:, 2], table[:, 3]
     # A phase whose bounds meet is an equality; as two rows it would make
     # the active-set systems singular. t_a - t_b = d for every equality
     # (sync references, <synchronize>, fixed times, rigid phases).
     rigid = phase_max - phase_min <= TOLERANCE
-    eq_a = np.concatenate([ties[:, 0].astype(np.int64), phase_b[rigid]])
-    eq_b = np.concatenate([ties[:, 1].astype(np.int64), phase_a[rigid]])
-    eq_d = np.concatenate([ties[:, 2], phase_min[rigid]])
-    key_class, key_offset = _eliminate(len(keys), eq_a, eq_b, eq_d)
+    eq_a = np.concatenate([np.array(problem._tie_a, dtype=np.int64), phase_b[rigid]])
+    eq_b = np.concatenate([np.array(problem._tie_b, dtype=np.int64), phase_a[rigid]])
+    eq_d = np.concatenate([np.array(problem._tie_d, dtype=float), phase_min[rigid]])
+    key_class, key_offset = _eliminate(n_keys, eq_a, eq_b, eq_d)
     if eq_a.size and np.abs(key_offset[eq_a] - key_offset[eq_b] - eq_d).max() > TOLERANCE:
         conflict = find_conflict(problem)
         raise Infeasible(conflict or frozenset(), "contradictory equalities")
     n_classes = int(key_class.max(initial=-1)) + 1
-    block = key_index[BLOCK_START]
+    block = keys[BLOCK_START]
     pinned_class = int(key_class[block])
     # The pinned class's value makes t_block = 0.
     pinned_value = -float(key_offset[block])
@@ -286,7 +351,7 @@ def solve_sparse(problem: Problem) -> dict[Key, float]:
         (np.ones(phase_a.size), (key_class[phase_a], key_class[phase_b])),
         shape=(n_classes, n_classes),
     )
-    _, comp = connected_components(linked, directed=False)
+    _, comp = csgraph.connected_components(linked, directed=False)
     pinned_comp = int(comp[pinned_class])
 
     # Variables: every class but the pinned one.
@@ -309,8 +374,7 @@ def solve_sparse(problem: Problem) -> dict[Key, float]:
     term_i, term_j = vb, va  # + x_i - x_j
     term_c = cb - ca - phase_p
     term_w = phase_w
-    start_rows = np.fromiter((key_index[k] for k in problem.starts), np.int64,
-                             len(problem.starts))  # fmt: skip
+    start_rows = np.array(problem._starts, dtype=np.int64)
     start_var, start_const = as_var(start_rows)
     # One pulled start per free component makes the system definite; the
     # polish step removes the pull once a bound pins the shift.
@@ -330,11 +394,9 @@ def solve_sparse(problem: Problem) -> dict[Key, float]:
 
     # Inequalities as rows ``t_upper - t_lower >= minimum`` (key indices, -1: zero).
     stretchy = np.isfinite(phase_max) & (phase_max - phase_min > TOLERANCE)
-    order_upper = np.fromiter((key_index[r.b] for r in problem.orderings), np.int64,
-                              len(problem.orderings))  # fmt: skip
-    order_lower = np.fromiter((key_index[r.a] for r in problem.orderings), np.int64,
-                              len(problem.orderings))  # fmt: skip
-    order_min = np.array([r.ka - r.kb for r in problem.orderings], dtype=float)
+    order_upper = np.array(problem._order_upper, dtype=np.int64)
+    order_lower = np.array(problem._order_lower, dtype=np.int64)
+    order_min = np.array(problem._order_min, dtype=float)
     # t >= 0: per class, only the tightest (the earliest key) matters; the
     # pinned class is a plain check.
     by_class = np.lexsort((key_offset, key_class))
@@ -350,13 +412,6 @@ def solve_sparse(problem: Problem) -> dict[Key, float]:
     )
     minimum = np.concatenate([order_min, phase_min, -phase_max[stretchy],
                               np.zeros(earliest_key.size)])  # fmt: skip
-    phase_sources = [source for _, _, _, source in problem.phases]
-    sources = (
-        [r.source for r in problem.orderings]
-        + phase_sources
-        + [source for source, keep in zip(phase_sources, stretchy.tolist(), strict=True) if keep]
-        + [BLOCK_SOURCE] * int(earliest_key.size)
-    )
     ri, ci = as_var(upper)
     rj, cj = as_var(lower)
     b = minimum - ci + cj
@@ -365,7 +420,8 @@ def solve_sparse(problem: Problem) -> dict[Key, float]:
     if broken.size:
         conflict = find_conflict(problem)
         raise Infeasible(
-            conflict or frozenset({sources[int(broken[0])]}), "a fixed time breaks a bound"
+            conflict or frozenset({_row_source(problem, stretchy.tolist(), int(broken[0]))}),
+            "a fixed time breaks a bound",
         )
     ri, rj, b = ri[~constant], rj[~constant], b[~constant]
     matrix = _rows_matrix(n, ri, rj)
@@ -411,204 +467,227 @@ def solve_sparse(problem: Problem) -> dict[Key, float]:
     return dict(zip(keys, times.tolist(), strict=True))
 
 
+def _row_source(problem: Problem, stretchy: list[bool], row: int) -> Source:
+    """The source of inequality row ``row`` of :func:`solve_sparse`'s list:
+    orderings, phase minima, finite phase maxima, then t >= 0."""
+    if row < len(problem.orderings):
+        return problem.orderings[row].source
+    row -= len(problem.orderings)
+    phase_sources = [source for _, _, _, source in problem.phases]
+    if row < len(phase_sources):
+        return phase_sources[row]
+    row -= len(phase_sources)
+    maxima = [source for source, keep in zip(phase_sources, stretchy, strict=True) if keep]
+    return maxima[row] if row < len(maxima) else BLOCK_SOURCE
+
+
 # -- the dense path for small problems -------------------------------------------
 
 
+def _find(parent: list[int], offset: list[float], x: int) -> int:
+    """The root of ``x`` in a weighted union-find; compresses the path.
+
+    ``offset[y]`` is ``t_y - t_parent(y)``; afterwards every key on the path
+    has the root as parent and its offset to the root.
+    """
+    path = []
+    while parent[x] != x:
+        path.append(x)
+        x = parent[x]
+    total = 0.0
+    for y in reversed(path):  # nearest the root first
+        total += offset[y]
+        offset[y] = total
+        parent[y] = x
+    return x
+
+
+def _root(parent: list[int], x: int) -> int:
+    """The root of ``x`` in a plain union-find (path halving)."""
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    return x
+
+
 def solve_dense(problem: Problem) -> dict[Key, float]:
-    """:func:`solve` for small problems: the same method on dense matrices.
+    """:func:`solve` for small problems: the same method on dense matrices, numpy only.
 
     A block of a few behaviours is a few dozen sync points, for which the
     sparse path spends nearly all its time building scipy.sparse objects
-    and array temporaries around a tiny system. Here the bookkeeping
-    (equality classes by a weighted union-find, cost components, the rows)
-    is plain Python over the problem's lists, and the linear algebra is
-    numpy's dense solve. The method is the sparse path's step for step (the
-    optimum without inequalities shifted to start at 0, then the
-    primal-dual active-set method and the polish); should the active-set
-    method cycle, the problem goes to :func:`solve_sparse`, whose fallback
-    always ends. Results equal the sparse path's (tests compare them on
-    random problems).
+    and array temporaries around a tiny system. Here the bookkeeping is
+    plain Python over the problem's index lists, touching only what a tie
+    touches: equality classes by a weighted union-find over the ties, cost
+    components by a union-find over behaviours (a behaviour's phases hold
+    its sync points together) and the ties between them. The arrays are
+    then built in a fixed number of numpy calls (about thirty, whatever
+    the size), the Hessian summed by ``bincount`` and the KKT systems
+    solved by ``numpy.linalg.solve``; scipy is never imported. The method
+    is the sparse path's step for step (the optimum without inequalities
+    shifted to start at 0, the primal-dual active-set method, the polish,
+    and should it cycle the primal active-set method from a feasible point
+    found by Bellman-Ford), so results equal the sparse path's (tests
+    compare them on random problems).
     """
-    keys = list(problem.keys)
-    n_keys = len(keys)
-    key_index = {key: index for index, key in enumerate(keys)}
-    # Equality classes with offsets, t_key = t_root + offset: a weighted
-    # union-find over the ties t_a - t_b = d (sync references, fixed times,
-    # rigid phases).
+    n_keys = len(problem.keys)
+    phase_a, phase_b, rows = problem._phase_a, problem._phase_b, problem._phase_rows
+    table = np.array(rows, dtype=float).reshape(-1, 4)
+    # Equality classes with offsets, t_key = t_root + offset[key]: the ties
+    # t_a - t_b = d (sync references, fixed times, rigid phases).
+    ties = list(zip(problem._tie_a, problem._tie_b, problem._tie_d, strict=True))
+    for p in np.flatnonzero(table[:, 3] - table[:, 2] <= TOLERANCE).tolist():
+        ties.append((phase_b[p], phase_a[p], rows[p][2]))
     parent = list(range(n_keys))
     offset = [0.0] * n_keys
-
-    def find(x: int) -> int:
-        path = []
-        while parent[x] != x:
-            path.append(x)
-            x = parent[x]
-        total = 0.0
-        for y in reversed(path):  # nearest the root first
-            total += offset[y]
-            offset[y] = total
-            parent[y] = x
-        return x
-
-    ties = [(key_index[r.a], key_index[r.b], r.kb - r.ka) for r in problem.equalities]
-    phases = [
-        (key_index[a], key_index[b], p.weight, p.preferred, p.minimum, p.maximum, source)
-        for a, b, p, source in problem.phases
-    ]
-    ties += [(b, a, low) for a, b, _, _, low, high, _ in phases if high - low <= TOLERANCE]
     for a, b, d in ties:
-        ra, rb = find(a), find(b)
+        ra, rb = _find(parent, offset, a), _find(parent, offset, b)
         if ra == rb:
             if abs(offset[a] - offset[b] - d) > TOLERANCE:
                 conflict = find_conflict(problem)
                 raise Infeasible(conflict or frozenset(), "contradictory equalities")
-        else:  # t_ra - t_rb = d + offset_b - offset_a
+        else:  # t_ra - t_rb = d + offset_b - offset_a (a root's own offset is 0)
             parent[ra] = rb
-            offset[ra] = d + offset[b] - offset[a]  # a root's own offset is 0
-    roots = [find(k) for k in range(n_keys)]  # also flattens: offset[k] is to its root
-    for k in range(n_keys):
-        if roots[k] == k:
-            offset[k] = 0.0
-    block = key_index[BLOCK_START]
-    pinned = roots[block]
-    pinned_value = -offset[block]
-    # Cost components: classes (roots) linked by phases.
-    components = _Forest(n_keys)
-    for a, b, *_ in phases:
-        components.union(roots[a], roots[b])
-    pinned_comp = components.find(pinned)
-    # Variables: every class but the pinned one; t_key = x[var[key]] + const[key].
-    var_of_root: dict[int, int] = {}
-    for root in roots:
-        if root != pinned and root not in var_of_root:
-            var_of_root[root] = len(var_of_root)
-    n = len(var_of_root)
-    var = [var_of_root.get(root, -1) for root in roots]
-    const = [o + pinned_value if v < 0 else o for o, v in zip(offset, var, strict=True)]
-
-    # Objective: sum w (x_i - x_j + c)^2 over phases (i: the later point)
-    # and one start-early pull per free component, as 1/2 x'Hx + g'x.
-    pulled: list[int] = []
-    seen_comps: set[int] = set()
-    for start in problem.starts:
-        k = key_index[start]
-        comp = components.find(roots[k])
-        if comp not in seen_comps:
-            seen_comps.add(comp)
-            if comp != pinned_comp:
-                pulled.append(k)
-    var_arr = np.array(var, dtype=np.int64)
-    const_arr = np.array(const)
-    table = np.array([row[:6] for row in phases], dtype=float).reshape(-1, 6)
-    phase_a, phase_b = table[:, 0].astype(np.int64), table[:, 1].astype(np.int64)
-    phase_w, phase_min, phase_max = table[:, 2], table[:, 4], table[:, 5]
-    pulled_keys = np.array(pulled, dtype=np.int64)
-    n_phase, n_pulled = len(phases), len(pulled)
-    pull = PULL * (float(phase_w.mean()) if n_phase else 1.0)
-    term_i = np.concatenate([var_arr[phase_b], var_arr[pulled_keys]])
-    term_j = np.concatenate([var_arr[phase_a], np.full(n_pulled, -1, dtype=np.int64)])
-    term_c = np.concatenate(
-        [const_arr[phase_b] - const_arr[phase_a] - table[:, 3], const_arr[pulled_keys]]
-    )
-    term_w = 2.0 * np.concatenate([phase_w, np.full(n_pulled, pull)])
-    hessian, gradient = _dense_quadratic(n, term_i, term_j, term_c, term_w)
-
-    # Rows x_i - x_j >= b: orderings, phase bounds, and t >= 0 on the earliest
-    # key of every class (the pinned class: a plain check).
+            offset[ra] = d + offset[b] - offset[a]
+    tied = {k for a, b, _ in ties for k in (a, b)}
+    for k in tied:  # flatten: parent[k] is k's root, offset[k] relative to it
+        _find(parent, offset, k)
+    pinned = parent[0]  # the class of BLOCK_START, index 0
+    pinned_value = -offset[0]
+    # Variables: every class but the pinned one; t_key = x[var[key]] + const[key]
+    # (var -1: the pinned class, const is then the time itself).
+    roots = [k for k in range(n_keys) if parent[k] == k and k != pinned]
+    n = len(roots)
+    var_of_root = dict(zip(roots, range(n), strict=True))
+    var_of_root[pinned] = -1
+    var = [var_of_root[r] for r in parent]
+    const = offset[:]
+    # t >= 0 holds on a class when it holds on its earliest key.
     earliest: dict[int, int] = {}
-    for k, root in enumerate(roots):
-        if root == pinned:
-            if offset[k] + pinned_value < -TOLERANCE:
+    for k in tied | {pinned}:
+        r = parent[k]
+        if r == pinned:
+            const[k] = offset[k] + pinned_value
+            if const[k] < -TOLERANCE:
                 conflict = find_conflict(problem)
                 raise Infeasible(
                     conflict or frozenset({BLOCK_SOURCE}), "a fixed time breaks a bound"
                 )
-        elif root not in earliest or offset[k] < offset[earliest[root]]:
-            earliest[root] = k
-    orderings = problem.orderings
-    stretchy = np.isfinite(phase_max) & (phase_max - phase_min > TOLERANCE)
-    earliest_keys = np.array(list(earliest.values()), dtype=np.int64)
-    upper = np.concatenate(
-        [
-            np.array([key_index[r.b] for r in orderings], dtype=np.int64),
-            phase_b,
-            phase_a[stretchy],
-            earliest_keys,
-        ]
-    )
+        elif offset[k] < offset[earliest.get(r, r)]:
+            earliest[r] = k
+    earliest_keys = [earliest.get(r, r) for r in roots]
+
+    # Cost components: behaviours (each held together by its phases) and
+    # keys of no behaviour, joined by the ties. Those without the block
+    # start may shift freely: one start of each gets the start-early pull.
+    owner, n_chains = problem._owner, problem._behaviours
+    group = list(range(n_chains + n_keys))
+
+    def node(k: int) -> int:
+        return owner[k] if owner[k] >= 0 else n_chains + k
+
+    for a, b, _ in ties:
+        ga, gb = _root(group, node(a)), _root(group, node(b))
+        if ga != gb:
+            group[ga] = gb
+    for a, b in problem._links:
+        ga, gb = _root(group, a), _root(group, b)
+        if ga != gb:
+            group[ga] = gb
+    pinned_comp = _root(group, node(0))
+    pulled: list[int] = []
+    seen = {pinned_comp}
+    for k in problem._starts:
+        comp = _root(group, node(k))
+        if comp not in seen:
+            seen.add(comp)
+            pulled.append(k)
+
+    # Objective: sum w (x_i - x_j + c)^2 over phases (i: the later point),
+    # as 1/2 x'Hx + g'x, plus the pull on the pulled starts.
+    var_arr = np.array([*var, -1], dtype=np.int64)  # index n_keys: no key
+    const_arr = np.array([*const, 0.0])
+    pa = np.array(phase_a, dtype=np.int64)
+    pb = np.array(phase_b, dtype=np.int64)
+    term_i, term_j = var_arr[pb], var_arr[pa]
+    term_c = const_arr[pb] - const_arr[pa] - table[:, 1]
+    exact = _dense_quadratic(n, term_i, term_j, term_c, 2.0 * table[:, 0])
+    hessian, gradient = exact
+    pulled_vars = var_arr[pulled]
+    if pulled:
+        pull2 = 2.0 * PULL * (float(table[:, 0].mean()) if rows else 1.0)
+        hessian = hessian.copy()
+        hessian[pulled_vars, pulled_vars] += pull2  # distinct: one per component
+        gradient = gradient.copy()
+        gradient[pulled_vars] += pull2 * const_arr[pulled]
+
+    # Rows x_i - x_j >= b: orderings, phase minima, finite phase maxima, and
+    # t >= 0 on the earliest key of every class.
+    stretchy = np.isfinite(table[:, 3]) & (table[:, 3] - table[:, 2] > TOLERANCE)
+    ek = np.array(earliest_keys, dtype=np.int64)
+    upper = np.concatenate([np.array(problem._order_upper, dtype=np.int64), pb, pa[stretchy], ek])
     lower = np.concatenate(
         [
-            np.array([key_index[r.a] for r in orderings], dtype=np.int64),
-            phase_a,
-            phase_b[stretchy],
+            np.array(problem._order_lower, dtype=np.int64),
+            pa,
+            pb[stretchy],
+            np.full(ek.size, n_keys, dtype=np.int64),
         ]
     )
     minimum = np.concatenate(
-        [np.array([r.ka - r.kb for r in orderings]), phase_min, -phase_max[stretchy]]
-    )
-    n_plain = lower.size  # the rows after these are t >= 0 on earliest keys
-    row_i = var_arr[upper]
-    row_j = np.concatenate([var_arr[lower], np.full(earliest_keys.size, -1, dtype=np.int64)])
-    b_all = np.concatenate(
-        [minimum - const_arr[upper[:n_plain]] + const_arr[lower], -const_arr[earliest_keys]]
-    )
-    constant = row_i == row_j
+        [np.array(problem._order_min, dtype=float), table[:, 2], -table[stretchy, 3],
+         np.zeros(ek.size)]
+    )  # fmt: skip
+    row_i, row_j = var_arr[upper], var_arr[lower]
+    b_rows = minimum - const_arr[upper] + const_arr[lower]
+    constant = row_i == row_j  # nothing variable: a plain check
     if constant.any():
-        broken = np.flatnonzero(constant & (b_all > TOLERANCE))
+        broken = np.flatnonzero(constant & (b_rows > TOLERANCE))
         if broken.size:
-            sources = [r.source for r in orderings] + [row[6] for row in phases]
-            first_broken = int(broken[0])
             conflict = find_conflict(problem)
-            raise Infeasible(
-                conflict or frozenset({sources[min(first_broken, len(sources) - 1)]}),
-                "a fixed time breaks a bound",
-            )
+            source = _row_source(problem, stretchy.tolist(), int(broken[0]))
+            raise Infeasible(conflict or frozenset({source}), "a fixed time breaks a bound")
         keep = ~constant
-        row_i, row_j, b_all = row_i[keep], row_j[keep], b_all[keep]
-    m = b_all.size
+        row_i, row_j, b_rows = row_i[keep], row_j[keep], b_rows[keep]
     matrix = _incidence(row_i, row_j, n)
-    b_rows = b_all
 
     x, _ = _dense_kkt(hessian, gradient, matrix, [], b_rows)
     if x is None:
         raise SchedulingError("the scheduler's cost matrix is singular")
-    # Each free component moved so that its earliest point is at the block start.
-    comp_of_var = [0] * n
-    for root, v in var_of_root.items():
-        comp_of_var[v] = components.find(root)
-    values = x.tolist()
-    first: dict[int, float] = {}
-    for v, c in zip(var, const, strict=True):
-        if v >= 0:
-            comp = comp_of_var[v]
-            if comp != pinned_comp:
-                t = values[v] + c
-                if comp not in first or t < first[comp]:
-                    first[comp] = t
-    if first:
-        x = x - np.array([first.get(comp, 0.0) for comp in comp_of_var])
-    if m and float((matrix @ x - b_rows).min()) < -TOLERANCE:
+    comp_of_var = np.zeros(n, dtype=np.int64)
+    if pulled:
+        # Each free component moved so that its earliest point is at the block start.
+        comp_of_var[:] = [_root(group, node(r)) for r in roots]
+        comp_of_key = np.array([_root(group, node(k)) for k in range(n_keys)], dtype=np.int64)
+        times = np.append(x, 0.0)[var_arr[:-1]] + const_arr[:-1]
+        first = np.full(n_chains + n_keys, np.inf)
+        np.minimum.at(first, comp_of_key, times)
+        x = x - np.where(comp_of_var != pinned_comp, first[comp_of_var], 0.0)
+    if b_rows.size and float((matrix @ x - b_rows).min()) < -TOLERANCE:
         solved = _primal_dual_active_set(
             hessian, gradient, matrix, row_i, row_j, b_rows, x, kkt=_dense_kkt
         )
-        if solved is None:
-            return solve_sparse(problem)
-        if not pulled:
+        if solved is not None and not pulled:
             x = solved[0]  # nothing was pulled: already the exact optimum
-        else:
-            exact = _dense_quadratic(
-                n, term_i[:n_phase], term_j[:n_phase], term_c[:n_phase], term_w[:n_phase]
-            )
-            pulled_vars = var_arr[pulled_keys]
-            comp_array = np.array(comp_of_var, dtype=np.int64)
+        elif solved is not None:
             x = _polish(
                 exact, matrix, row_i, row_j, b_rows, solved[1], solved[0], pulled_vars,
-                comp_array, pinned_comp, kkt=_dense_kkt,
+                comp_of_var, pinned_comp, kkt=_dense_kkt,
             )  # fmt: skip
-    values = x.tolist()
-    return {
-        key: (values[v] + c if v >= 0 else c) for key, v, c in zip(keys, var, const, strict=True)
-    }
+        else:
+            # The fast method cycled or met a degenerate working set: the
+            # primal active-set method from a feasible point always ends.
+            start = _feasible_point_dense(n, row_i, row_j, b_rows)
+            if start is None:
+                conflict = find_conflict(problem)
+                raise Infeasible(conflict or frozenset(), "the constraints cannot all hold")
+            solved_x = _active_set(hessian, gradient, matrix, row_i, row_j, b_rows, start,
+                                   exact, pulled_vars, comp_of_var, pinned_comp,
+                                   kkt=_dense_kkt)  # fmt: skip
+            if solved_x is None:
+                raise SchedulingError("the scheduler's active-set method did not converge")
+            x = solved_x
+    values = [*x.tolist(), 0.0]  # var -1: the pinned class, whose const is its time
+    return {key: values[v] + c for key, v, c in zip(problem.keys, var, const, strict=True)}
 
 
 def _dense_quadratic(
@@ -616,17 +695,18 @@ def _dense_quadratic(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Dense H and g of sum w2/2 (x_i - x_j + c)^2 as 1/2 x'Hx + g'x (index -1: absent).
 
-    Summed by ``bincount``, not as D'WD: a matrix product goes to the
-    threaded BLAS, which on a busy machine costs a hundred times more.
+    Summed by ``bincount`` (index -1 goes to a row and column n that is cut
+    off), not as D'WD: a matrix product goes to the threaded BLAS, which on
+    a busy machine costs a hundred times more.
     """
-    has_i, has_j = i >= 0, j >= 0
-    both = has_i & has_j
-    ii, jj, bi, bj = i[has_i], j[has_j], i[both], j[both]
-    wi, wj, wb = w2[has_i], w2[has_j], w2[both]
-    flat = np.concatenate([ii * (n + 1), jj * (n + 1), bi * n + bj, bj * n + bi])
-    hessian = np.bincount(flat, np.concatenate([wi, wj, -wb, -wb]), n * n).reshape(n, n)
-    gradient = np.bincount(ii, wi * c[has_i], n) - np.bincount(jj, wj * c[has_j], n)
-    return hessian, gradient
+    size = n + 1
+    i, j = i % size, j % size  # -1 -> n
+    flat = np.concatenate([i * (size + 1), j * (size + 1), i * size + j, j * size + i])
+    weights = np.concatenate([w2, w2, -w2, -w2])
+    hessian = np.bincount(flat, weights, size * size).reshape(size, size)[:n, :n]
+    wc = w2 * c
+    gradient = (np.bincount(i, wc, size) - np.bincount(j, wc, size))[:n]
+    return np.ascontiguousarray(hessian), gradient
 
 
 def _incidence(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
@@ -648,19 +728,44 @@ def _dense_kkt(
     n = hessian.shape[0]
     if n == 0:
         return np.zeros(0), (np.zeros(len(working)) if working else None)
-    if not working:
-        *_, solution, info = _dgesv(hessian, -gradient)
-        return (solution, None) if info == 0 and np.isfinite(solution).all() else (None, None)
-    active = matrix[working]
-    k = len(working)
-    kkt = np.zeros((n + k, n + k))
-    kkt[:n, :n] = hessian
-    kkt[:n, n:] = -active.T
-    kkt[n:, :n] = active
-    *_, solution, info = _dgesv(kkt, np.concatenate([-gradient, b[working]]))
-    if info != 0 or not np.isfinite(solution).all():
+    try:
+        if not working:
+            solution = np.linalg.solve(hessian, -gradient)
+            return (solution, None) if np.isfinite(solution).all() else (None, None)
+        active = matrix[working]
+        k = len(working)
+        kkt = np.zeros((n + k, n + k))
+        kkt[:n, :n] = hessian
+        kkt[:n, n:] = -active.T
+        kkt[n:, :n] = active
+        solution = np.linalg.solve(kkt, np.concatenate([-gradient, b[working]]))
+    except np.linalg.LinAlgError:
+        return None, None
+    if not np.isfinite(solution).all():
         return None, None
     return solution[:n], solution[n : n + k]
+
+
+def _feasible_point_dense(
+    n: int, ri: np.ndarray, rj: np.ndarray, b: np.ndarray
+) -> np.ndarray | None:
+    """:func:`_feasible_point` without scipy: Bellman-Ford over arrays, for small problems.
+
+    Row ``x_i - x_j >= b`` is the edge i -> j of weight -b (-1: the zero
+    node n); every node starts at distance 0 (a virtual source joined to
+    all), and a relaxation still possible after n + 1 rounds is a negative
+    cycle.
+    """
+    u = np.where(ri >= 0, ri, n)
+    v = np.where(rj >= 0, rj, n)
+    weight = -b
+    distance = np.zeros(n + 1)
+    for _ in range(n + 2):
+        candidate = distance[u] + weight
+        if not (candidate < distance[v] - TOLERANCE).any():
+            return np.asarray(distance[:n] - distance[n], dtype=float)
+        np.minimum.at(distance, v, candidate)
+    return None
 
 
 def _eliminate(
@@ -677,6 +782,8 @@ def _eliminate(
     """
     if eq_a.size == 0:
         return np.arange(n_keys, dtype=np.int64), np.zeros(n_keys)
+    scipy = _scipy()
+    sp, csgraph = scipy.sparse, scipy.sparse.csgraph
     # Both directions, the first tie of parallel ones kept (a sparse matrix
     # would add them up).
     rows = np.concatenate([eq_a, eq_b])
@@ -687,7 +794,7 @@ def _eliminate(
     first = np.r_[True, (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1])]
     rows, cols, weight = rows[first], cols[first], weight[first]
     graph = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n_keys, n_keys))
-    _, labels = connected_components(graph, directed=False)
+    _, labels = csgraph.connected_components(graph, directed=False)
     # A virtual root n_keys joined to the first key of every class.
     _, representative = np.unique(labels, return_index=True)
     rooted = sp.csr_matrix(
@@ -700,7 +807,7 @@ def _eliminate(
         ),
         shape=(n_keys + 1, n_keys + 1),
     )
-    _, parent = breadth_first_order(rooted, n_keys, directed=True, return_predecessors=True)
+    _, parent = csgraph.breadth_first_order(rooted, n_keys, directed=True, return_predecessors=True)
     parent = parent[:n_keys]
     # The weight of the tree edge (parent -> key): t_key - t_parent.
     lookup = sp.csr_matrix((np.arange(1, rows.size + 1), (rows, cols)), shape=(n_keys, n_keys))
@@ -819,6 +926,7 @@ def _quadratic(
     n: int, i: np.ndarray, j: np.ndarray, c: np.ndarray, w: np.ndarray
 ) -> tuple[sp.csc_matrix, np.ndarray]:
     """H and g of sum w (x_i - x_j + c)^2 / 2-scaled: 1/2 x'Hx + g'x (index -1: absent)."""
+    sp = _scipy().sparse
     rows: list[np.ndarray] = []
     cols: list[np.ndarray] = []
     vals: list[np.ndarray] = []
@@ -843,6 +951,7 @@ def _quadratic(
 
 def _rows_matrix(n: int, ri: np.ndarray, rj: np.ndarray) -> sp.csr_matrix:
     """The m x n matrix of rows ``x_i - x_j`` (index -1: absent)."""
+    sp = _scipy().sparse
     m = ri.size
     row_index = np.arange(m)
     has_i, has_j = ri >= 0, rj >= 0
@@ -864,6 +973,7 @@ def _feasible_point(n: int, ri: np.ndarray, rj: np.ndarray, b: np.ndarray) -> np
     Each row is the difference constraint ``x_j - x_i <= -b``: an edge i -> j
     of weight -b (index n is the zero node, n + 1 a source joined to all).
     """
+    scipy = _scipy()
     zero, source = n, n + 1
     u = np.where(ri >= 0, ri, zero)
     v = np.where(rj >= 0, rj, zero)
@@ -877,10 +987,12 @@ def _feasible_point(n: int, ri: np.ndarray, rj: np.ndarray, b: np.ndarray) -> np
     u = np.concatenate([u, np.full(n + 1, source)])
     v = np.concatenate([v, np.arange(n + 1)])
     weight = np.concatenate([weight, np.zeros(n + 1)])
-    graph = sp.csr_matrix((weight, (u, v)), shape=(n + 2, n + 2))
+    graph = scipy.sparse.csr_matrix((weight, (u, v)), shape=(n + 2, n + 2))
     try:
-        distance = shortest_path(graph, method="BF", directed=True, indices=source)
-    except NegativeCycleError:
+        distance = scipy.sparse.csgraph.shortest_path(
+            graph, method="BF", directed=True, indices=source
+        )
+    except scipy.sparse.csgraph.NegativeCycleError:
         return None
     return np.asarray(distance[:n] - distance[zero], dtype=float)
 
@@ -897,6 +1009,7 @@ def _active_set(
     pulled: np.ndarray,
     var_comp: np.ndarray,
     pinned_comp: int,
+    kkt: Callable[..., tuple[np.ndarray | None, np.ndarray | None]] | None = None,
 ) -> np.ndarray | None:
     """Primal active-set method from the feasible point ``x`` (Nocedal & Wright 16.3).
 
@@ -906,17 +1019,20 @@ def _active_set(
     working set, whose bounds now pin every shift, so the result is the exact
     optimum of the phase costs.
     """
+    solve_kkt = kkt or _kkt
     m = b.size
     working: list[int] = []
     in_working = np.zeros(m, dtype=bool)
     for _ in range(10 * m + 50):
-        step, multipliers = _kkt(hessian, hessian @ x + gradient, matrix, working, np.zeros(m))
+        step, multipliers = solve_kkt(hessian, hessian @ x + gradient, matrix, working,
+                                      np.zeros(m))  # fmt: skip
         if step is None:
             return None
         size = float(np.abs(step).max(initial=0.0))
         if size <= 1e-10 * (1 + np.abs(x).max(initial=0.0)):
             if not working or multipliers is None or multipliers.min() >= -1e-12:
-                return _polish(exact, matrix, ri, rj, b, working, x, pulled, var_comp, pinned_comp)
+                return _polish(exact, matrix, ri, rj, b, working, x, pulled, var_comp,
+                               pinned_comp, kkt=kkt)  # fmt: skip
             drop = working.pop(int(np.argmin(multipliers)))
             in_working[drop] = False
             continue
@@ -978,6 +1094,7 @@ def _polish(
             hold.append(int(v))
     augmented: Any
     if kkt is None:
+        sp = _scipy().sparse
         extra = sp.csr_matrix(
             (np.ones(len(hold)), (np.arange(len(hold)), np.asarray(hold, dtype=np.int64))),
             shape=(len(hold), n),
@@ -1005,6 +1122,8 @@ def _kkt(
 
     ``quiet``: a singular system gives None rather than a least-squares answer.
     """
+    scipy = _scipy()
+    sp, spla = scipy.sparse, scipy.sparse.linalg
     n = hessian.shape[0]
     if not working:
         if n == 0:
