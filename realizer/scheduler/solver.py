@@ -141,8 +141,8 @@ class Problem:
     # The same in key indices, in step with the lists above.
     _phase_a: list[int] = field(default_factory=list, repr=False)
     _phase_b: list[int] = field(default_factory=list, repr=False)
-    #: (weight, preferred, minimum, maximum) of each phase
-    _phase_rows: list[tuple[float, float, float, float]] = field(default_factory=list, repr=False)
+    #: weight, preferred, minimum, maximum of each phase, one after the other
+    _phase_table: list[float] = field(default_factory=list, repr=False)
     #: t_a - t_b = d of each equality: a, b, d
     _tie_a: list[int] = field(default_factory=list, repr=False)
     _tie_b: list[int] = field(default_factory=list, repr=False)
@@ -198,7 +198,7 @@ class Problem:
         self.phases.extend(zip(keys, keys[1:], phases, itertools.repeat(source)))
         self._phase_a.extend(indices[:-1])
         self._phase_b.extend(indices[1:])
-        self._phase_rows.extend(map(_PHASE_FIELDS, phases))
+        self._phase_table.extend(itertools.chain.from_iterable(map(_PHASE_FIELDS, phases)))
 
     def equal(self, a: Key, ka: float, b: Key, kb: float, source: Source) -> None:
         """``t_a + ka == t_b + kb``."""
@@ -324,7 +324,7 @@ def solve_sparse(problem: Problem) -> dict[Key, float]:
     keys = problem.keys
     n_keys = len(keys)
     # The problem's index lists become arrays in one call each.
-    table = np.array(problem._phase_rows, dtype=float).reshape(-1, 4)
+    table = np.array(problem._phase_table, dtype=float).reshape(-1, 4)
     phase_a = np.array(problem._phase_a, dtype=np.int64)
     phase_b = np.array(problem._phase_b, dtype=np.int64)
     phase_w, phase_p, phase_min, phase_max = table[:, 0], table[:, 1], table[:, 2], table[:, 3]
@@ -530,13 +530,15 @@ def solve_dense(problem: Problem) -> dict[Key, float]:
     compare them on random problems).
     """
     n_keys = len(problem.keys)
-    phase_a, phase_b, rows = problem._phase_a, problem._phase_b, problem._phase_rows
-    table = np.array(rows, dtype=float).reshape(-1, 4)
+    phase_a, phase_b, flat = problem._phase_a, problem._phase_b, problem._phase_table
+    table = np.array(flat, dtype=float).reshape(-1, 4)
     # Equality classes with offsets, t_key = t_root + offset[key]: the ties
     # t_a - t_b = d (sync references, fixed times, rigid phases).
     ties = list(zip(problem._tie_a, problem._tie_b, problem._tie_d, strict=True))
-    for p in np.flatnonzero(table[:, 3] - table[:, 2] <= TOLERANCE).tolist():
-        ties.append((phase_b[p], phase_a[p], rows[p][2]))
+    rigid = table[:, 3] - table[:, 2] <= TOLERANCE
+    if np.count_nonzero(rigid):
+        for p in np.flatnonzero(rigid).tolist():
+            ties.append((phase_b[p], phase_a[p], flat[4 * p + 2]))
     parent = list(range(n_keys))
     offset = [0.0] * n_keys
     for a, b, d in ties:
@@ -614,7 +616,7 @@ def solve_dense(problem: Problem) -> dict[Key, float]:
     hessian, gradient = exact
     pulled_vars = var_arr[pulled]
     if pulled:
-        pull2 = 2.0 * PULL * (float(table[:, 0].mean()) if rows else 1.0)
+        pull2 = 2.0 * PULL * (float(table[:, 0].mean()) if table.size else 1.0)
         hessian = hessian.copy()
         hessian[pulled_vars, pulled_vars] += pull2  # distinct: one per component
         gradient = gradient.copy()
@@ -640,7 +642,7 @@ def solve_dense(problem: Problem) -> dict[Key, float]:
     row_i, row_j = var_arr[upper], var_arr[lower]
     b_rows = minimum - const_arr[upper] + const_arr[lower]
     constant = row_i == row_j  # nothing variable: a plain check
-    if constant.any():
+    if np.count_nonzero(constant):
         broken = np.flatnonzero(constant & (b_rows > TOLERANCE))
         if broken.size:
             conflict = find_conflict(problem)
@@ -648,9 +650,8 @@ def solve_dense(problem: Problem) -> dict[Key, float]:
             raise Infeasible(conflict or frozenset({source}), "a fixed time breaks a bound")
         keep = ~constant
         row_i, row_j, b_rows = row_i[keep], row_j[keep], b_rows[keep]
-    matrix = _incidence(row_i, row_j, n)
 
-    x, _ = _dense_kkt(hessian, gradient, matrix, [], b_rows)
+    x, _ = _row_kkt(hessian, gradient, row_i, row_j, [], b_rows)
     if x is None:
         raise SchedulingError("the scheduler's cost matrix is singular")
     comp_of_var = np.zeros(n, dtype=np.int64)
@@ -662,10 +663,9 @@ def solve_dense(problem: Problem) -> dict[Key, float]:
         first = np.full(n_chains + n_keys, np.inf)
         np.minimum.at(first, comp_of_key, times)
         x = x - np.where(comp_of_var != pinned_comp, first[comp_of_var], 0.0)
-    if b_rows.size and float((matrix @ x - b_rows).min()) < -TOLERANCE:
-        solved = _primal_dual_active_set(
-            hessian, gradient, matrix, row_i, row_j, b_rows, x, kkt=_dense_kkt
-        )
+    if b_rows.size and float(_slack(x, row_i, row_j, b_rows).min()) < -TOLERANCE:
+        solved = _dense_active_set(hessian, gradient, row_i, row_j, b_rows, x)
+        matrix = _incidence(row_i, row_j, n)  # for the polish and the fallback
         if solved is not None and not pulled:
             x = solved[0]  # nothing was pulled: already the exact optimum
         elif solved is not None:
@@ -688,6 +688,99 @@ def solve_dense(problem: Problem) -> dict[Key, float]:
             x = solved_x
     values = [*x.tolist(), 0.0]  # var -1: the pinned class, whose const is its time
     return {key: values[v] + c for key, v, c in zip(problem.keys, var, const, strict=True)}
+
+
+def _slack(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``x_i - x_j - b`` of every row (index -1: the zero appended to ``x``)."""
+    extended = np.append(x, 0.0)
+    slack: np.ndarray = extended[ri] - extended[rj] - b
+    return slack
+
+
+def _row_kkt(
+    hessian: np.ndarray,
+    gradient: np.ndarray,
+    ri: np.ndarray,
+    rj: np.ndarray,
+    working: list[int],
+    b: np.ndarray,
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """:func:`_dense_kkt` with the rows given by their indices (no m x n matrix)."""
+    n = hessian.shape[0]
+    k = len(working)
+    if n == 0:
+        return np.zeros(0), (np.zeros(k) if k else None)
+    try:
+        if not k:
+            solution = np.linalg.solve(hessian, -gradient)
+            return (solution, None) if np.isfinite(solution).all() else (None, None)
+        kkt = np.zeros((n + k + 1, n + k + 1))  # index -1 (absent) lands in the last row and column
+        kkt[:n, :n] = hessian
+        lines = np.arange(n, n + k)
+        wi, wj = ri[working], rj[working]
+        kkt[lines, wi] = 1.0
+        kkt[wi, lines] = -1.0
+        kkt[lines, wj] = -1.0
+        kkt[wj, lines] = 1.0
+        rhs = np.concatenate([-gradient, b[working]])
+        solution = np.linalg.solve(kkt[:-1, :-1], rhs)
+    except np.linalg.LinAlgError:
+        return None, None
+    if not np.isfinite(solution).all():
+        return None, None
+    return solution[:n], solution[n:]
+
+
+def _independent_rows(ri: list[int], rj: list[int], rows: list[int], n: int) -> list[int]:
+    """:func:`_independent` on lists (index -1: the zero node)."""
+    forest = _Forest(n + 1)
+    union = forest.union
+    return [row for row in rows if union(ri[row] % (n + 1), rj[row] % (n + 1))]
+
+
+def _dense_active_set(
+    hessian: np.ndarray,
+    gradient: np.ndarray,
+    ri: np.ndarray,
+    rj: np.ndarray,
+    b: np.ndarray,
+    x: np.ndarray,
+) -> tuple[np.ndarray, list[int]] | None:
+    """:func:`_primal_dual_active_set` step for step, on rows given by their indices.
+
+    The same predictions, tolerances and ways to give up, without an m x n
+    matrix: slacks by indexing (:func:`_slack`), KKT systems from the
+    working rows alone (:func:`_row_kkt`).
+    """
+    n = x.size
+    ri_list, rj_list = ri.tolist(), rj.tolist()
+    active = _slack(x, ri, rj, b) < -TOLERANCE
+    seen: set[bytes] = set()
+    multipliers = np.zeros(b.size)
+    for _ in range(PDAS_STEPS):
+        working = _independent_rows(ri_list, rj_list, np.flatnonzero(active).tolist(), n)
+        solution, lam = _row_kkt(hessian, gradient, ri, rj, working, b)
+        if solution is None:
+            return None
+        multipliers[:] = 0.0
+        if working:
+            assert lam is not None
+            multipliers[working] = lam
+        slack = _slack(solution, ri, rj, b)
+        scale = 1e-9 * (1.0 + float(np.abs(multipliers).max(initial=0.0)))
+        # A held row stays unless its multiplier is clearly negative (see
+        # _primal_dual_active_set).
+        predicted = (active & (multipliers >= -scale)) | (slack < -TOLERANCE)
+        if np.array_equal(predicted, active):
+            if slack.min(initial=0.0) >= -TOLERANCE and multipliers.min(initial=0.0) >= -scale:
+                return solution, working
+            return None
+        signature = np.packbits(predicted).tobytes()
+        if signature in seen:
+            return None
+        seen.add(signature)
+        active = predicted
+    return None
 
 
 def _dense_quadratic(
