@@ -34,6 +34,7 @@ A FAP is set in the result where any animation has a weight above 0.
 from __future__ import annotations
 
 import bisect
+import operator
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import pairwise
@@ -200,6 +201,14 @@ class FapAnimation:
             values[self._index] += level * self._values
             mask[self._index] = True
 
+    def replace_in(self, values: FloatArray, mask: BoolArray, now: float) -> None:
+        """What :func:`mix` does with a ``replace`` animation, on its own FAPs only."""
+        level = self.envelope.level_at(now)
+        if level > 0.0:
+            index = self._index
+            values[index] = (1.0 - level) * values[index] + level * self._values
+            mask[index] = True
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class KeyframeAnimation:
@@ -359,12 +368,14 @@ class FapLimits:
         return np.minimum(np.maximum(values, self.lower), self.upper)
 
 
+#: The mixing order's key; the sort is stable, so ties keep the order given.
+_MIX_ORDER = operator.attrgetter("priority", "start")
+
+
 def _order(animations: Iterable[Animation]) -> list[Animation]:
     if isinstance(animations, list) and len(animations) < 2:
         return animations
-    indexed = list(enumerate(animations))
-    indexed.sort(key=lambda pair: (pair[1].priority, pair[1].start, pair[0]))
-    return [animation for _, animation in indexed]
+    return sorted(animations, key=_MIX_ORDER)
 
 
 def mix(

@@ -1,7 +1,9 @@
-"""The mixer's fast path (``add_to``) gives exactly what evaluating every animation gives.
+"""The mixer's fast paths (``add_to``, ``replace_in``) give what evaluating gives.
 
-``mix`` lets an ``add`` animation add itself on its own FAPs (``add_to``)
-instead of returning two (68,) vectors; the result must not change. The
+``mix`` lets an ``add`` animation add itself on its own FAPs (``add_to``),
+and a ``replace`` face animation cross-fade on its own FAPs
+(``replace_in``), instead of returning two (68,) vectors; the result must
+not change (the random animations below use both blends). The
 reference here is the mixer's rule written out over ``evaluate``.
 """
 
