@@ -20,8 +20,9 @@ problem building, solving), the time of
 growth exponent fitted on log-log, and the 1,000-behaviour time against the
 goal of 10 ms; then blocks of 1 to 10 behaviours against 100 us. Times are
 the CPU time of the thread (:data:`_timing.CPU_CLOCK`), best of several
-runs: the cost of the work, which wall time on a shared machine is not. With active inequalities the primal-dual active-set method
-takes a few sparse factorisations whatever their number; should a solver
+runs: the cost of the work, which wall time on a shared machine is not.
+With active inequalities the primal-dual active-set method takes a few
+sparse factorisations whatever their number; should a solver
 change make the time grow much faster than linearly again, a size whose
 projected time per call exceeds :data:`PROJECTED_LIMIT` is reported, not
 timed.
