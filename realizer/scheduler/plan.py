@@ -38,7 +38,7 @@ from realizer.scheduler.solver import (
     Problem,
     SchedulingError,
     Source,
-    solve,
+    solve_times,
 )
 from realizer.scheduler.timing import TimingModel, TimingModelError
 
@@ -416,7 +416,7 @@ def schedule_block(
         mark = len(notes)
         problem = builder.build(skip, dropped_constraints)
         try:
-            times = solve(problem)
+            values = solve_times(problem)
             break
         except Infeasible as exc:
             # The edges and pins that explain a conflict, from the same build
@@ -471,18 +471,20 @@ def schedule_block(
                         id=f"{block.id}:{victim.id}",
                     )
                 )
+    # max(0, t): the solver's round-off may leave -1e-18 at the block start
+    values = [start + (t if t > 0.0 else 0.0) for t in values]
     behaviours = []
+    firsts, indices = problem._first, problem.keys
     for behaviour in block.behaviours:
         if behaviour.id in skip or behaviour.id not in models:
             continue
-        model = models[behaviour.id]
-        behaviours.append(
-            ScheduledBehaviour(
-                # max(0, t): the solver's round-off may leave -1e-18 at the block start
-                behaviour,
-                {sync: start + max(0.0, times[(behaviour.id, sync)]) for sync in model.syncs},
-            )
-        )
+        syncs = models[behaviour.id].syncs
+        first = firsts.get(behaviour.id)
+        if first is not None:  # its keys are consecutive
+            times = dict(zip(syncs, values[first : first + len(syncs)], strict=True))
+        else:
+            times = {sync: values[indices[(behaviour.id, sync)]] for sync in syncs}
+        behaviours.append(ScheduledBehaviour(behaviour, times))
     busy = _resolve_channels(block.id, behaviours, registry, notes, occupied)
     if busy:
         skip |= busy

@@ -158,6 +158,9 @@ class Problem:
     #: pairs of behaviours that share a key (so one cost component)
     _links: list[tuple[int, int]] = field(default_factory=list, repr=False)
     _behaviours: int = field(default=0, repr=False)
+    #: behaviour id -> the index of its first key, for behaviours whose keys
+    #: got consecutive indices (the usual case): their times are one slice
+    _first: dict[str, int] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         self._index(BLOCK_START)
@@ -186,7 +189,9 @@ class Problem:
             indices: list[int] = list(range(first, first + len(keys)))
             known.update(zip(keys, indices, strict=True))
             self._owner.extend([chain] * len(keys))
+            self._first[behaviour_id] = first
         else:  # known keys keep their place
+            self._first.pop(behaviour_id, None)
             indices = [self._index(key) for key in keys]
             owner = self._owner
             for index in indices:
@@ -297,6 +302,13 @@ def solve(problem: Problem) -> dict[Key, float]:
     return solve_sparse(problem)
 
 
+def solve_times(problem: Problem) -> list[float]:
+    """:func:`solve`'s times as a list in the order of ``problem.keys`` (no dict)."""
+    if len(problem.keys) <= DENSE_KEYS:
+        return _dense_times(problem)
+    return _sparse_times(problem)
+
+
 def _scipy() -> Any:
     """scipy, which only the sparse path needs: the ``schedule`` extra.
 
@@ -319,6 +331,11 @@ def _scipy() -> Any:
 
 def solve_sparse(problem: Problem) -> dict[Key, float]:
     """:func:`solve` on sparse matrices, vectorised: the path for big blocks."""
+    return dict(zip(problem.keys, _sparse_times(problem), strict=True))
+
+
+def _sparse_times(problem: Problem) -> list[float]:
+    """:func:`solve_sparse`'s times in key order."""
     scipy = _scipy()
     sp, csgraph = scipy.sparse, scipy.sparse.csgraph
     keys = problem.keys
@@ -464,7 +481,8 @@ def solve_sparse(problem: Problem) -> dict[Key, float]:
     values = np.where(var_of_class >= 0, 0.0, pinned_value)
     values[free] = x
     times = values[key_class] + key_offset
-    return dict(zip(keys, times.tolist(), strict=True))
+    times_list: list[float] = times.tolist()
+    return times_list
 
 
 def _row_source(problem: Problem, stretchy: list[bool], row: int) -> Source:
@@ -512,6 +530,14 @@ def _root(parent: list[int], x: int) -> int:
 
 def solve_dense(problem: Problem) -> dict[Key, float]:
     """:func:`solve` for small problems: the same method on dense matrices, numpy only.
+
+    See :func:`_dense_times`.
+    """
+    return dict(zip(problem.keys, _dense_times(problem), strict=True))
+
+
+def _dense_times(problem: Problem) -> list[float]:
+    """:func:`solve_dense`'s times in key order.
 
     A block of a few behaviours is a few dozen sync points, for which the
     sparse path spends nearly all its time building scipy.sparse objects
@@ -687,7 +713,7 @@ def solve_dense(problem: Problem) -> dict[Key, float]:
                 raise SchedulingError("the scheduler's active-set method did not converge")
             x = solved_x
     values = [*x.tolist(), 0.0]  # var -1: the pinned class, whose const is its time
-    return {key: values[v] + c for key, v, c in zip(problem.keys, var, const, strict=True)}
+    return [values[v] + c for v, c in zip(var, const, strict=True)]
 
 
 def _slack(x: np.ndarray, ri: np.ndarray, rj: np.ndarray, b: np.ndarray) -> np.ndarray:
