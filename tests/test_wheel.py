@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 import re
+import signal
 import socket
 import subprocess
 import sys
@@ -240,3 +241,61 @@ def test_with_the_extras_every_command_runs(full_venv: Path) -> None:
         pytest.skip(f"no OpenGL offscreen context here: {rendered.stderr[-300:]}")
     assert rendered.returncode == 0, rendered.stderr
     assert (fresh_venv / "f.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_installed_commands_run_and_the_core_client_talks_to_the_installed_server(
+    core_venv: Path, full_venv: Path
+) -> None:
+    """The rest of the commands from the [all] venv, then ``realizer serve``
+    from it with ``realizer send`` from the core venv and ``record`` against it."""
+    for args in (
+        ("facs", "AU12"),
+        ("emotion", "--word", "joy"),
+        ("faps", str(EXAMPLE), "-o", "smile.fap"),
+        ("plot-faps", str(EXAMPLE), "-o", "faps.png"),
+        ("serve", "--print-config"),
+    ):
+        done = realizer(full_venv, *args)
+        assert done.returncode == 0, (args, done.stderr)
+    assert (full_venv / "smile.fap").stat().st_size > 100
+    assert (full_venv / "faps.png").read_bytes()[:4] == b"\x89PNG"
+
+    environment = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+    server = subprocess.Popen(
+        [str(full_venv / "bin" / "realizer"), "serve", "--port", "0", "--no-idle"],
+        cwd=full_venv,
+        env=environment,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert server.stderr is not None
+        seen: list[str] = []
+        found = None
+        for line in server.stderr:  # log lines, then "realizer: serving on HOST:PORT (...)"
+            seen.append(line)
+            found = re.search(r"serving on \S+:(\d+)", line)
+            if found is not None or len(seen) > 50:
+                break
+        assert found is not None, "".join(seen)
+        port = found.group(1)
+        sent = realizer(core_venv, "send", str(EXAMPLE), "--port", port, "--character", "Ann")
+        assert sent.returncode == 0, sent.stderr
+        assert "blockProgress" in sent.stdout and ":end" in sent.stdout
+        recorded = realizer(
+            full_venv, "record", "--port", port, "--seconds", "1", "-o", "frames.jsonl"
+        )
+        assert recorded.returncode == 0, recorded.stderr
+        assert (full_venv / "frames.jsonl").read_text().count("\n") > 10
+    finally:
+        server.send_signal(signal.SIGTERM)
+        try:
+            stopped = server.wait(30)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            stopped = server.wait()
+        assert server.stderr is not None
+        server.stderr.close()
+    assert stopped == 0  # SIGTERM: a clean stop
