@@ -5,14 +5,16 @@ that only talks to a realizer: the BML parser, the session, the Python
 client (:mod:`realizer.client`) and the command line. Everything with a
 heavy dependency is an extra: ``[serve]`` (the service: scipy for the face's
 mesh deformation and the scheduler's sparse solver), ``[schedule]`` (scipy
-for the scheduler), ``[render]``, ``[plots]``, ``[bench]``, ``[cluster]``,
-or ``[all]``. pyproject.toml's ``[project.optional-dependencies]`` is the
+for the scheduler's sparse path: blocks of more than 160 sync points),
+``[render]``, ``[plots]``, ``[bench]``, ``[cluster]``, ``[stomp]`` or
+``[all]``. pyproject.toml's ``[project.optional-dependencies]`` is the
 list, and :data:`EXTRAS` below must name the same extras.
 
 Several extras bring scipy; a command names the one that fits it
-(:data:`COMMAND_EXTRAS`), and a module that needs scipy at import time
-raises :class:`MissingExtraError` through :func:`missing_module` instead of
-a bare :class:`ModuleNotFoundError`.
+(:data:`COMMAND_EXTRAS`), and a module that needs scipy (at import time,
+or the solver when a block takes the sparse path) raises
+:class:`MissingExtraError` through :func:`missing_module` instead of a bare
+:class:`ModuleNotFoundError`.
 
 A command that needs an extra calls :func:`require` before its work starts;
 the command line turns a :class:`MissingExtraError`, and any

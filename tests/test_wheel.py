@@ -33,6 +33,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "bml" / "01_smile.xml"
+BML_NS = "http://www.bml-initiative.org/bml/bml-1.0"
 WHEELHOUSE = ROOT / ".cache" / "wheels" / "core"
 
 #: The most a venv with the core alone may take, in MiB (``du -sk`` / 1024,
@@ -177,8 +178,9 @@ def test_the_core_alone_is_small_and_parses_and_names_missing_extras(core_venv: 
 
 
 def test_the_core_schedules_a_small_block_or_names_the_schedule_extra(core_venv: Path) -> None:
-    """Until the scheduler imports scipy only for big blocks, scheduling without
-    it says which extra to install; once it does, a small block schedules."""
+    """The scheduler imports scipy only for big blocks (its sparse path): a
+    small block schedules with the core, a big one names the extra. (Had the
+    solver imported scipy at module level, every block would name it.)"""
     python = str(core_venv / "bin" / "python")
     lazy = _run([python, "-c", "import realizer.scheduler.solver"], core_venv)
     scheduled = realizer(core_venv, "schedule", "--json", str(EXAMPLE))
@@ -186,6 +188,17 @@ def test_the_core_schedules_a_small_block_or_names_the_schedule_extra(core_venv:
     if lazy.returncode == 0:
         assert scheduled.returncode == 0, scheduled.stderr
         assert '"start"' in scheduled.stdout
+        # a block past the dense path's size needs the sparse solver: scipy
+        heads = "".join(
+            f'<head id="h{i}" lexeme="NOD" start="{i / 2}" end="{i / 2 + 0.4}"/>' for i in range(60)
+        )
+        big = core_venv / "big.xml"
+        big.write_text(f'<bml xmlns="{BML_NS}" id="big">{heads}</bml>', encoding="utf-8")
+        refused = realizer(core_venv, "schedule", str(big))
+        assert refused.returncode == 2 and "Traceback" not in refused.stderr
+        assert refused.stderr.startswith(
+            "realizer: error: realizer schedule needs the 'schedule' extra"
+        ), refused.stderr
     else:
         assert "the 'schedule' extra (no module named 'scipy')" in lazy.stderr
         assert scheduled.returncode == 2
