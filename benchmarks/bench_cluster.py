@@ -251,6 +251,7 @@ def run(quick: bool = False) -> None:
             skipped(f"serve {characters} x {viewers}", f"{type(exc).__name__}: {exc}")
     clustered: dict[tuple[int, int], dict[str, Any]] = {}
     limits = ["--limit", "characters=256", "--limit", "viewers_per_character=256"]
+    limits += ["--limit", "viewer_characters=256"]
     with LocalCluster() as cluster:
         workers, gateways = cluster.start(
             workers=2, gateways=2, worker_args=limits, gateway_args=limits

@@ -44,10 +44,11 @@ import random
 import re
 import subprocess
 import sys
+import threading
 import time
 import urllib.request
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import IO, Any, NamedTuple
 
 import msgpack
 import psutil
@@ -97,6 +98,11 @@ class Result(NamedTuple):
     rss_mb: float
 
 
+def _drain(stream: IO[bytes]) -> None:
+    with stream:
+        stream.read()
+
+
 def start_server(fps: float, extra: list[str]) -> tuple[subprocess.Popen[bytes], int]:
     process = subprocess.Popen(
         [sys.executable, "-m", "realizer", "serve", "--port", "0", "--fps", str(fps), *extra],
@@ -110,6 +116,8 @@ def start_server(fps: float, extra: list[str]) -> tuple[subprocess.Popen[bytes],
         line = process.stderr.readline().decode()
         match = re.search(r"serving on \S+:(\d+)", line)
         if match:
+            # Keep reading: a server whose log fills the pipe blocks in its writes.
+            threading.Thread(target=_drain, args=(process.stderr,), daemon=True).start()
             return process, int(match.group(1))
         if not line and process.poll() is not None:
             break
@@ -357,7 +365,11 @@ def run_load(
     if port is not None:
         data = asyncio.run(measure(port, characters, viewers, seconds, vertices))
         return analyse(characters, viewers, data, None, float("nan"), health(port))
-    limits = ["--limit", f"viewers_per_character={max(256, viewers)}", "--limit", "characters=256"]
+    # viewer_characters: the viewers connect before any block names their characters.
+    limits = [
+        *("--limit", f"viewers_per_character={max(256, viewers)}"),
+        *("--limit", "characters=256", "--limit", "viewer_characters=256"),
+    ]
     process, port = start_server(FPS, limits)
     try:
         server = psutil.Process(process.pid)

@@ -9,6 +9,8 @@ import re
 from pathlib import Path
 from types import ModuleType
 
+import pytest
+
 from tests.service.process import serve_process
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -101,3 +103,30 @@ def test_every_service_of_the_cluster_compose_uses_the_port_following_health_che
         port = command[command.index("--port") + 1]
         for published in service.get("ports", []):
             assert published.rpartition(":")[2] == port, (name, published)
+
+
+def test_the_cluster_compose_file_runs_nats_two_workers_and_two_gateways() -> None:
+    """docker/compose.cluster.yml read as YAML (anchors and merge keys
+    resolved, as compose does); each realizer service's command line is
+    parsed by the realizer's own argument parser. No Docker engine runs
+    here, so ``docker compose up`` itself is not tested."""
+    yaml = pytest.importorskip("yaml")
+    from realizer.cli import build_parser
+
+    compose = yaml.safe_load((ROOT / "docker" / "compose.cluster.yml").read_text(encoding="utf-8"))
+    services = compose["services"]
+    assert set(services) == {"nats", "worker-1", "worker-2", "gateway-1", "gateway-2"}
+    assert services["nats"]["image"].startswith("nats:")
+    assert "-js" in services["nats"]["command"]  # the leases need JetStream
+    published: list[str] = []
+    for name in ("worker-1", "worker-2", "gateway-1", "gateway-2"):
+        service = services[name]
+        assert service["image"] == "realizer" and service["depends_on"] == ["nats"]
+        command = service["command"]
+        args = build_parser(command).parse_args(command)
+        assert args.command == name.split("-")[0]
+        assert args.nats == "nats://nats:4222" and args.id == name
+        published += service.get("ports", [])
+    assert published == ["127.0.0.1:8765:8765", "127.0.0.1:8766:8765"]
+    # A gateway binds 0.0.0.0 in its container: it must be given a token.
+    assert "REALIZER_SUBMIT_TOKEN" in services["gateway-1"]["environment"]
