@@ -33,7 +33,10 @@ from __future__ import annotations
 
 import csv
 import io
+import threading
+import weakref
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
@@ -110,9 +113,11 @@ def _target_file() -> dict[str, np.ndarray]:
 
 
 def arkit_targets(face: Any) -> tuple[npt.NDArray[np.int64], FloatArray]:
-    """(vertices, offsets): the face vertices the targets move, and each
-    target's offsets there, (52, k, 3) metres. Needs ``attr:source_index``
-    (the hm08 vertex of each face vertex), which the default face has."""
+    """(vertices, offsets): the face vertices the targets move (sorted), and
+    each target's offsets there, (52, k, 3) metres. Needs
+    ``attr:source_index`` (the hm08 vertex of each face vertex), which the
+    default face has. A few whole-array operations over the targets' stored
+    offsets (no per-vertex or dense per-face work)."""
     source = face.attributes.get("source_index")
     if source is None:
         raise FaceError("this face has no source_index: ARKit targets fit only the default face")
@@ -122,16 +127,21 @@ def arkit_targets(face: Any) -> tuple[npt.NDArray[np.int64], FloatArray]:
     to_face = np.full(int(source.max()) + 1, -1, dtype=np.int64)
     mapped = np.flatnonzero(source >= 0)
     to_face[source[mapped]] = mapped
-    dense = np.zeros((52, face.vertex_count, 3))
-    for t, name in enumerate(ARKIT_NAMES):
-        index = data[f"{name}:index"].astype(np.int64)
-        offsets = data[f"{name}:offset"].astype(np.float64) * step
-        keep = index < to_face.size
-        vertex = to_face[index[keep]]
-        ok = vertex >= 0
-        dense[t, vertex[ok]] = offsets[keep][ok]
-    moved = np.flatnonzero(np.any(dense != 0, axis=(0, 2)))
-    return moved, dense[:, moved]
+    indices = [data[f"{name}:index"].astype(np.int64) for name in ARKIT_NAMES]
+    target = np.repeat(np.arange(52), [len(i) for i in indices])
+    index = np.concatenate(indices)
+    offsets = np.concatenate([data[f"{name}:offset"] for name in ARKIT_NAMES]).astype(np.float64)
+    keep = index < to_face.size
+    vertex = np.full(index.size, -1, dtype=np.int64)
+    vertex[keep] = to_face[index[keep]]
+    ok = vertex >= 0
+    target, vertex, offsets = target[ok], vertex[ok], offsets[ok] * step
+    moved = np.unique(vertex[np.any(offsets != 0, axis=1)])
+    column = np.minimum(np.searchsorted(moved, vertex), max(moved.size - 1, 0))
+    hit = moved[column] == vertex if moved.size else np.zeros(vertex.size, dtype=bool)
+    out = np.zeros((52, moved.size, 3))
+    out[target[hit], column[hit]] = offsets[hit]
+    return moved, out
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,19 +152,92 @@ class ArkitFrame:
     pose: FloatArray
 
 
-class ArkitFit:
-    """Projects FAP frames onto the ARKit targets of a face (module docstring)."""
+@dataclass(frozen=True, slots=True, eq=False)
+class ArkitBasis:
+    """What fitting a face costs to set up, once per face (tens of ms on
+    the default face, mostly :func:`arkit_targets`): its rig, the vertices
+    the targets move and their rest positions, the fitted targets' offsets
+    as the columns of ``basis`` (3k, f), and the normal equations' ``gram``
+    (f, f). Read-only once built, so every fit of the face shares it."""
 
-    def __init__(self, face: Any) -> None:
+    rig: Any
+    vertices: npt.NDArray[np.int64]
+    neutral: FloatArray
+    fitted: npt.NDArray[np.int64]
+    basis: FloatArray
+    gram: FloatArray
+
+    @classmethod
+    def build(cls, face: Any) -> ArkitBasis:
         from realizer.face.deform import rig_for
 
-        self.rig = rig_for(face)
-        self.vertices, offsets = arkit_targets(face)
-        self.neutral = np.asarray(face.vertices, dtype=np.float64)[self.vertices]
-        self.fitted = np.array([i for i in range(52) if i not in _EYE_LOOK])
-        basis = offsets[self.fitted].reshape(self.fitted.size, -1).T  # (3k, f)
-        self.basis = basis
-        self.gram = basis.T @ basis + 1e-12 * np.eye(self.fitted.size)
+        vertices, offsets = arkit_targets(face)
+        fitted = np.array([i for i in range(52) if i not in _EYE_LOOK])
+        basis = offsets[fitted].reshape(fitted.size, -1).T  # (3k, f)
+        gram = basis.T @ basis + 1e-12 * np.eye(fitted.size)
+        neutral = np.asarray(face.vertices, dtype=np.float64)[vertices]
+        return cls(rig_for(face), vertices, neutral, fitted, basis, gram)
+
+
+_BASES: weakref.WeakKeyDictionary[Any, ArkitBasis] = weakref.WeakKeyDictionary()
+_PREPARING: weakref.WeakKeyDictionary[Any, Future[ArkitBasis]] = weakref.WeakKeyDictionary()
+_BASES_LOCK = threading.Lock()
+_BUILDER: ThreadPoolExecutor | None = None
+
+
+def arkit_basis(face: Any) -> ArkitBasis:
+    """The face's :class:`ArkitBasis`, built here on first use (blocking;
+    a real-time caller uses :func:`prepare_arkit` instead)."""
+    with _BASES_LOCK:
+        found = _BASES.get(face)
+    if found is None:
+        found = ArkitBasis.build(face)
+        with _BASES_LOCK:
+            found = _BASES.setdefault(face, found)
+    return found
+
+
+def prepare_arkit(face: Any) -> Future[ArkitBasis]:
+    """The face's :class:`ArkitBasis`, built in a background thread (once
+    per face, however many callers ask) so that a frame clock never waits
+    for it: the future is done at once when the basis exists, and holds the
+    :class:`FaceError` of a face the targets do not fit."""
+    global _BUILDER
+    with _BASES_LOCK:
+        found = _BASES.get(face)
+        if found is not None:
+            done: Future[ArkitBasis] = Future()
+            done.set_result(found)
+            return done
+        pending = _PREPARING.get(face)
+        if pending is None:
+            if _BUILDER is None:
+                _BUILDER = ThreadPoolExecutor(1, thread_name_prefix="realizer-arkit")
+            pending = _PREPARING[face] = _BUILDER.submit(arkit_basis, face)
+        return pending
+
+
+def forget_arkit_bases() -> None:
+    """Drop every built basis (tests measure a first build with it)."""
+    with _BASES_LOCK:
+        _BASES.clear()
+        _PREPARING.clear()
+
+
+class ArkitFit:
+    """Projects FAP frames onto the ARKit targets of a face (module docstring).
+
+    The per-face set-up is the shared :class:`ArkitBasis` (``basis``, or
+    built here); a fit keeps only its warm start, one per stream."""
+
+    def __init__(self, face: Any, basis: ArkitBasis | None = None) -> None:
+        shared = basis if basis is not None else arkit_basis(face)
+        self.rig = shared.rig
+        self.vertices = shared.vertices
+        self.neutral = shared.neutral
+        self.fitted = shared.fitted
+        self.basis = shared.basis
+        self.gram = shared.gram
         self._last = np.zeros(self.fitted.size)
 
     def displacement(self, fap_vector: FloatArray) -> FloatArray:
@@ -227,9 +310,9 @@ def decode_payload(data: bytes) -> ArkitFrame:
     return ArkitFrame(weights, pose)
 
 
-def arkit_encoder(face: Any) -> Callable[[FloatArray], bytes]:
+def arkit_encoder(face: Any, basis: ArkitBasis | None = None) -> Callable[[FloatArray], bytes]:
     """``vector -> arkit payload`` for a face, the last result kept for an unchanged vector."""
-    fit = ArkitFit(face)
+    fit = ArkitFit(face, basis)
     last: list[Any] = [None, b""]
 
     def encode(vector: FloatArray) -> bytes:

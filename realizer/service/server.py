@@ -468,7 +468,9 @@ class RealizerService:
             number, character_tick.time, character_tick.frame, (v.options for v in viewers)
         )
         for viewer in viewers:
-            viewer.offer(encoded[viewer.options], WRITE_LIMIT)
+            data = encoded.get(viewer.options)  # none for ARKit viewers until its fit is set up
+            if data is not None:
+                viewer.offer(data, WRITE_LIMIT)
 
     def _send_audio(self, character: str, now: float, viewers: Iterable[Viewer]) -> None:
         """The character's speech audio due at ``now`` to the viewers that want it."""

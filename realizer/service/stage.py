@@ -673,8 +673,17 @@ class Stage:
         return f"{where}{exc.message}"
 
 
+def _NO_ARKIT(vector: npt.NDArray[np.float64]) -> bytes:
+    """The ARKit encoder of a face the targets do not fit (never called)."""
+    raise AssertionError("no ARKit stream for this face")
+
+
 class FrameEncoder:
     """msgpack bytes of one character's frames, per kind of viewer.
+
+    ARKit viewers get no frame until their face's ARKit fit is set up, off
+    the clock (:meth:`_arkit_ready`): the result of :meth:`encode` then has
+    no entry for their options.
 
     ``face`` gives the neutral pose and triangles; ``deform(face, vector)``
     the (n, 3) vertices for a (68,) FAP vector. The face is deformed only
@@ -735,11 +744,11 @@ class FrameEncoder:
         coded = self._code(number, values, mask) if any(o.coded for o in wanted) else None
         arkit = None
         if any(o.arkit for o in wanted):
-            if self._arkit is None:
-                from realizer.face.arkit import arkit_encoder
-
-                self._arkit = arkit_encoder(self.face)
-            arkit = self._arkit(np.where(mask, values, 0.0))
+            encode_arkit = self._arkit_ready()
+            if encode_arkit is None:  # the fit is being set up: those viewers wait
+                wanted = {o for o in wanted if not o.arkit}
+            elif encode_arkit is not _NO_ARKIT:
+                arkit = encode_arkit(np.where(mask, values, 0.0))
         return {
             options: codec.pack(
                 codec.frame_message(
@@ -756,6 +765,24 @@ class FrameEncoder:
             )
             for options in wanted
         }
+
+    def _arkit_ready(self) -> Callable[[npt.NDArray[np.float64]], bytes] | None:
+        """This face's ARKit encoder, or None while its fit is set up in a
+        background thread (realizer.face.arkit.prepare_arkit; tens of ms the
+        clock must not wait for); :data:`_NO_ARKIT` for a face the ARKit
+        targets do not fit (its frames then carry no ``arkit`` field)."""
+        if self._arkit is None:
+            from realizer.face.arkit import arkit_encoder, prepare_arkit
+
+            basis = prepare_arkit(self.face)
+            if not basis.done():
+                return None
+            if basis.exception() is not None:
+                logger.warning("no ARKit stream for this face: %s", basis.exception())
+                self._arkit = _NO_ARKIT
+            else:
+                self._arkit = arkit_encoder(self.face, basis.result())
+        return self._arkit
 
     def want_intra(self) -> None:
         """Make the next coded frame an intra frame (a coded viewer joined)."""
