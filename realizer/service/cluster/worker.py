@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import http
 import logging
 import time
@@ -317,9 +318,34 @@ class ClusterWorker(RealizerService):
             return
         now = self.now()
         if request.op == "bml":
-            result = self.stage.submit_bml(
-                request.bml, now, character=character, strict=request.strict
-            )
+            # Parsed and planned on a planner thread, as realizer serve does:
+            # the clock of every character here never waits for a submitter.
+            # Requests of one character stay in order (one subscription's
+            # callbacks run one at a time).
+            try:
+                result = await asyncio.get_running_loop().run_in_executor(
+                    self._planner,
+                    functools.partial(
+                        self.stage.submit_bml,
+                        request.bml,
+                        now,
+                        character=character,
+                        strict=request.strict,
+                    ),
+                )
+            except RuntimeError:  # the planner is shut down: the worker is stopping
+                self._reply(msg, OwnerReply("retry", self.worker_id, "worker stopping"))
+                return
+            current = self.owned.get(character)
+            if current is None:  # lost while it was planned
+                self._publish_feedback(result.messages, request.reply_to)
+                self._drop(character)  # submit_bml made it again on the stage
+                if result.accepted:
+                    why = f"{self.worker_id} lost character {character!r} while planning it"
+                    self._end_lost_blocks(character, [result.block_id], why)
+                self._reply(msg, OwnerReply("ok", self.worker_id))
+                return
+            owned = current
             self._publish_feedback(
                 result.messages, request.reply_to, character in self.stage.characters
             )
