@@ -446,3 +446,35 @@ def test_a_worker_plans_off_its_clock_so_other_characters_keep_their_frames(
     if load > cpus:
         pytest.skip(f"timing not judged: load average {load:.1f} > {cpus} CPUs ({seen})")
     assert max(gaps) <= 0.050, f"a gap of {max(gaps) * 1e3:.1f} ms while the block was planned"
+
+
+@pytest.mark.slow
+def test_a_worker_frees_idle_characters_nobody_watches_and_keeps_the_watched_ones(
+    cluster: Any,
+) -> None:
+    """Regression: the service's idle rule keeps the characters of local
+    viewers and submitters, and a worker has none (they are at the
+    gateways): it freed a character watched through a gateway (whose viewer
+    then got no frames) and kept the lease of every character it freed.
+    Now a worker keeps what some gateway's viewers watch, frees the rest
+    after ``character_idle_seconds`` and gives their leases back."""
+    from realizer.service.client import SubmitClient, ViewClient
+
+    (worker,), (gateway,) = cluster.start(
+        workers=1, gateways=1, worker_args=["--limit", "character_idle_seconds=1"]
+    )
+    url = f"ws://127.0.0.1:{gateway.port}"
+    with ViewClient(url, character="watched") as view:
+        with SubmitClient(url, character="gone") as submitter:
+            submitter.submit(smile("short", 0.1, "gone"))
+            read_until(submitter, block_state("short", "done", "rejected"), 10 * UNIT)
+        assert {"watched", "gone"} <= set(health(worker.port)["owned"])
+        deadline = time.monotonic() + 10 * UNIT
+        while "gone" in health(worker.port)["owned"]:
+            assert time.monotonic() < deadline, "the idle character's lease was kept"
+            time.sleep(0.1)
+        time.sleep(1.5)  # past the idle time of the watched character too
+        assert "watched" in health(worker.port)["owned"]
+        numbers = [frame["n"] for frame in view.frames(5, timeout=5 * UNIT)]
+        later = [frame["n"] for frame in view.frames(5, timeout=5 * UNIT)]
+        assert numbers == sorted(numbers) and later[-1] > numbers[-1]

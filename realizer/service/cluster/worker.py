@@ -386,6 +386,22 @@ class ClusterWorker(RealizerService):
                 wanted.setdefault(character, set()).update(formats)
         self.wanted = {character: frozenset(formats) for character, formats in wanted.items()}
 
+    def _forget_idle_characters(self, now: float) -> None:
+        """Free characters with no open block for ``character_idle_seconds``
+        that no gateway's viewer watches, and give their leases back.
+
+        The service's own rule keeps the characters of its local viewers and
+        submitters; a worker has none (they are at the gateways), so that
+        rule freed characters still watched through a gateway while the
+        worker kept their leases: their viewers got no frames any more."""
+        for character in self.stage.forget_idle(
+            now, self.limits.character_idle_seconds, keep=self.wanted
+        ):
+            self.encoders.pop(character, None)
+            owned = self.owned.pop(character, None)  # at once: no request is taken now
+            if owned is not None:
+                self._spawn(self._give_back(character, owned))
+
     # -- leases ---------------------------------------------------------------------------
 
     def _has_room(self) -> bool:
@@ -519,12 +535,17 @@ class ClusterWorker(RealizerService):
         owned = self.owned.pop(character, None)
         if owned is None:
             return
+        await self._give_back(character, owned)
+        self._drop(character)
+
+    async def _give_back(self, character: str, owned: Owned) -> None:
+        """Stop taking requests for a character no longer owned here, and
+        delete its lease (if nobody has taken it meanwhile)."""
         assert self.kv is not None
         with contextlib.suppress(Exception):
             if owned.subscription is not None:
                 await owned.subscription.unsubscribe()
             await self.kv.delete(token(character), last=owned.revision)
-        self._drop(character)
 
     def _drop(self, character: str) -> None:
         # The stage has no removal of its own: a character it no longer
