@@ -1,7 +1,8 @@
 """Load benchmark of the cluster (workers and gateways over NATS), on loopback only.
 
 In one run, for each load (characters x viewers: 10 x 100 and 50 x 200),
-side by side:
+side by side, one after the other (the cluster started once and idle
+while the one process is measured):
 
 * ``realizer serve``, one process (the service benchmark's own load and
   analysis, ``bench_service.run_load``);
@@ -14,7 +15,9 @@ at each viewer of its character (p50, p99); frame delivery, from the
 frame's due time on its owner's clock to its arrival at a viewer (p99; the
 owner's frame 0 is on the host's monotonic clock, its ``/health``); frames
 dropped (numbers a viewer never received); CPU per process (percent of one
-core over the measured window).
+core; for the cluster over the measured window, for ``realizer serve``
+from the first viewer's connection on, as the service benchmark takes it).
+The load average is printed before and after the loads.
 
 Then the takeover time: a character runs a long block, its owner is killed
 with SIGKILL, and the time is taken from the kill to the arrival, at the
@@ -39,6 +42,7 @@ import random
 import statistics
 import sys
 import urllib.request
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -66,10 +70,15 @@ def health(port: int) -> dict[str, Any]:
 
 
 async def measure(
-    gateways: list[int], characters: int, viewers: int, seconds: float
+    gateways: list[int],
+    characters: int,
+    viewers: int,
+    seconds: float,
+    window: Callable[[], None] = lambda: None,
 ) -> dict[str, Any]:
     """Viewers spread over the gateways, probes from one submitter on the
-    first; the same probes and pacing as the service benchmark."""
+    first; the same probes and pacing as the service benchmark. ``window``
+    is called when the measured window opens and when it closes."""
     loop = asyncio.get_running_loop()
     names = [f"c{i:02d}" for i in range(characters)]
     logs: list[bench_service.ViewerLog] = []
@@ -98,6 +107,7 @@ async def measure(
     feedback = loop.create_task(drain())
     await asyncio.sleep(1.0)  # every viewer's interest reaches the owners
     probes: list[tuple[str, float]] = []
+    window()
     began = loop.time()
     spacing = 0.6 / characters
     chance = random.Random(6)
@@ -113,6 +123,7 @@ async def measure(
         await asyncio.sleep(max(0.0, began + index * spacing + phase - loop.time()))
     await asyncio.sleep(0.5)
     ended = loop.time()
+    window()
     for viewer in lean:
         viewer.close()
     await submitter.close()
@@ -171,10 +182,14 @@ def run_cluster_load(
         for i, child in enumerate(workers + gateways)
     }
     processes["nats-server"] = psutil.Process(cluster.nats.pid)
-    for process in processes.values():
-        process.cpu_percent()
-    data = asyncio.run(measure([g.port for g in gateways], characters, viewers, seconds))
-    cpu = {name: process.cpu_percent() for name, process in processes.items()}
+    cpu: dict[str, float] = {}
+
+    def window() -> None:  # CPU over the measured window only (not the connecting)
+        for name, process in processes.items():
+            cpu[name] = process.cpu_percent()
+
+    ports = [g.port for g in gateways]
+    data = asyncio.run(measure(ports, characters, viewers, seconds, window))
     started: dict[str, float] = {}
     for worker in workers:
         status = health(worker.port)
@@ -241,14 +256,10 @@ def run(quick: bool = False) -> None:
     loads = [(10, 100), (50, 200)]
     print(
         f"cluster vs one process on loopback, {FPS:g} fps, {os.cpu_count()} CPUs: "
-        "1 nats-server, 2 workers, 2 gateways (viewers on both, submitter on one)"
+        "1 nats-server, 2 workers, 2 gateways (viewers on both, submitter on one); "
+        f"load average {os.getloadavg()[0]:.2f} at the start"
     )
     single: dict[tuple[int, int], Any] = {}
-    for characters, viewers in loads:
-        try:
-            single[(characters, viewers)] = bench_service.run_load(characters, viewers, seconds)
-        except Exception as exc:  # an overloaded machine: say so, measure the cluster anyway
-            skipped(f"serve {characters} x {viewers}", f"{type(exc).__name__}: {exc}")
     clustered: dict[tuple[int, int], dict[str, Any]] = {}
     limits = ["--limit", "characters=256", "--limit", "viewers_per_character=256"]
     limits += ["--limit", "viewer_characters=256"]
@@ -256,10 +267,17 @@ def run(quick: bool = False) -> None:
         workers, gateways = cluster.start(
             workers=2, gateways=2, worker_args=limits, gateway_args=limits
         )
+        # Each load on one process, then at once on the cluster (idle meanwhile),
+        # so that both halves of a comparison see the machine in the same state.
         for characters, viewers in loads:
+            try:
+                single[(characters, viewers)] = bench_service.run_load(characters, viewers, seconds)
+            except Exception as exc:  # an overloaded machine: say so, measure the cluster anyway
+                skipped(f"serve {characters} x {viewers}", f"{type(exc).__name__}: {exc}")
             clustered[(characters, viewers)] = run_cluster_load(
                 cluster, workers, gateways, characters, viewers, seconds
             )
+    print(f"load average {os.getloadavg()[0]:.2f} after the loads")
 
     def ms(values: list[float], q: float) -> float:
         return percentile([v * 1000 for v in values], q)
