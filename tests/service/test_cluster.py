@@ -478,3 +478,43 @@ def test_a_worker_frees_idle_characters_nobody_watches_and_keeps_the_watched_one
         numbers = [frame["n"] for frame in view.frames(5, timeout=5 * UNIT)]
         later = [frame["n"] for frame in view.frames(5, timeout=5 * UNIT)]
         assert numbers == sorted(numbers) and later[-1] > numbers[-1]
+
+
+@pytest.mark.slow
+def test_viewers_through_a_gateway_make_a_bounded_number_of_characters(cluster: Any) -> None:
+    """Regression (issue 10's defect 13 through the cluster): a worker made
+    every character a gateway's viewer asked for, so view-only clients
+    could take all of its characters. It counts them as ``realizer serve``
+    does (``viewer_characters``, per worker): over it a viewer of a new
+    character is closed with 1013, and a submitter still gets one."""
+    import asyncio
+
+    from websockets.asyncio.client import connect
+
+    limits = ["--limit", "viewer_characters=2", "--limit", "characters=6"]
+    _, (gateway,) = cluster.start(workers=1, gateways=1, worker_args=limits)
+    base = f"ws://127.0.0.1:{gateway.port}"
+
+    async def scenario() -> tuple[list[int | None], bool]:
+        viewers = [await connect(f"{base}/view?character=v{n}") for n in range(4)]
+        codes: list[int | None] = []
+        for viewer in viewers:
+            try:
+                await asyncio.wait_for(viewer.recv(), 10 * UNIT)  # the mesh
+                codes.append(None)
+            except ConnectionClosed:
+                codes.append(viewer.close_code)
+        async with connect(f"{base}/bml?format=json&character=carol") as submitter:
+            await submitter.recv()  # welcome
+            await submitter.send(smile("c1", 0.2, "carol"))
+            state = ""
+            while state not in ("accepted", "rejected"):
+                message = json.loads(await asyncio.wait_for(submitter.recv(), 10 * UNIT))
+                state = message.get("state", "") if message["type"] == "block" else ""
+        for viewer in viewers:
+            await viewer.close()
+        return codes, state == "accepted"
+
+    codes, accepted = asyncio.run(scenario())
+    assert codes == [None, None, 1013, 1013]
+    assert accepted  # a submitter still gets a character

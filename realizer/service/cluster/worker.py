@@ -286,8 +286,17 @@ class ClusterWorker(RealizerService):
         if not self._has_room():
             self._reply(msg, OwnerReply("full", self.worker_id, "worker full"))
             return
+        viewer = request.op == "view"
+        if lease is None and viewer and not self._viewer_room():
+            # As realizer serve: viewers cannot take the submitters' characters.
+            reason = (
+                f"limit of {self.limits.viewer_characters} characters made for viewers "
+                f"reached; character {character!r} not created"
+            )
+            self._reply(msg, OwnerReply("error", self.worker_id, reason))
+            return
         if lease is None:
-            won = await self._create(character)
+            won = await self._create(character, for_viewer=viewer)
         elif time.monotonic() - lease.seen > self.table.ttl:
             won = await self._take_over(lease)
         else:
@@ -416,13 +425,19 @@ class ClusterWorker(RealizerService):
         blocks = tuple(found.open_blocks)[: CLUSTER_LIMITS.lease_blocks] if found else ()
         return LeaseValue(self.worker_id, blocks)
 
-    async def _create(self, character: str) -> bool:
+    def _viewer_room(self) -> bool:
+        """Whether viewers alone may make one more character here
+        (``limits.viewer_characters``, counted per worker)."""
+        made = sum(1 for c in self.stage.characters.values() if c.viewer_made)
+        return made < self.limits.viewer_characters
+
+    async def _create(self, character: str, *, for_viewer: bool = False) -> bool:
         assert self.kv is not None
         try:
             revision = await self.kv.create(token(character), LeaseValue(self.worker_id).pack())
         except KeyWrongLastSequenceError:
             return False
-        return await self._own(character, revision)
+        return await self._own(character, revision, for_viewer=for_viewer)
 
     async def _take_over(self, lease: ObservedLease) -> bool:
         """Compare-and-set on the revision seen unrenewed: one worker wins."""
@@ -468,10 +483,10 @@ class ClusterWorker(RealizerService):
             self.lost_blocks += 1
         self._publish_feedback(lost)
 
-    async def _own(self, character: str, revision: int) -> bool:
+    async def _own(self, character: str, revision: int, *, for_viewer: bool = False) -> bool:
         assert self.nats is not None and self.kv is not None
         try:
-            self.stage.character(character)
+            self.stage.character(character, for_viewer=for_viewer)
         except Exception as exc:  # a limit reached meanwhile: give the lease back
             logger.warning("cannot run character %r: %s", character, exc)
             with contextlib.suppress(Exception):
@@ -601,6 +616,6 @@ class ClusterWorker(RealizerService):
         for character in list(self.wanted):
             if character in self.owned or character in self.table.leases:
                 continue
-            if not self._has_room():
+            if not self._has_room() or not self._viewer_room():
                 break
-            await self._create(character)
+            await self._create(character, for_viewer=True)
