@@ -691,10 +691,10 @@ def _dense_times(problem: Problem) -> list[float]:
         x = x - np.where(comp_of_var != pinned_comp, first[comp_of_var], 0.0)
     if b_rows.size and float(_slack(x, row_i, row_j, b_rows).min()) < -TOLERANCE:
         solved = _dense_active_set(hessian, gradient, row_i, row_j, b_rows, x)
-        matrix = _incidence(row_i, row_j, n)  # for the polish and the fallback
         if solved is not None and not pulled:
             x = solved[0]  # nothing was pulled: already the exact optimum
         elif solved is not None:
+            matrix = _incidence(row_i, row_j, n)
             x = _polish(
                 exact, matrix, row_i, row_j, b_rows, solved[1], solved[0], pulled_vars,
                 comp_of_var, pinned_comp, kkt=_dense_kkt,
@@ -702,6 +702,7 @@ def _dense_times(problem: Problem) -> list[float]:
         else:
             # The fast method cycled or met a degenerate working set: the
             # primal active-set method from a feasible point always ends.
+            matrix = _incidence(row_i, row_j, n)
             start = _feasible_point_dense(n, row_i, row_j, b_rows)
             if start is None:
                 conflict = find_conflict(problem)
