@@ -332,8 +332,7 @@ class StompBridge:
         deadline = time.monotonic() + self.config.connect_timeout
         while not connection.is_connected():
             if time.monotonic() > deadline or not connection.transport.running:
-                with contextlib.suppress(Exception):
-                    connection.disconnect()
+                _close(connection)
                 raise TimeoutError("no CONNECTED frame from the broker")
             time.sleep(0.01)
         # subscribed means the broker said so (a receipt): nothing sent after
@@ -344,8 +343,7 @@ class StompBridge:
             headers["selector"] = self.layout.selector
         connection.subscribe(self.layout.bml_topic, id="realizer-bml", ack="auto", headers=headers)
         if not listener.subscribed.wait(max(0.0, deadline - time.monotonic())):
-            with contextlib.suppress(Exception):
-                connection.disconnect()
+            _close(connection)
             raise TimeoutError("no receipt for the subscription")
         self._connection = connection
         self._connected.set()
@@ -354,8 +352,7 @@ class StompBridge:
         connection, self._connection = self._connection, None
         self._connected.clear()
         if connection is not None:
-            with contextlib.suppress(Exception):
-                connection.disconnect()
+            _close(connection)
 
     def _connection_lost(self, connection: Any) -> None:
         """From stomp.py's thread: the connection ``connection`` is gone."""
@@ -586,6 +583,15 @@ class _Listener:
 
 
 # -- helpers -------------------------------------------------------------------------
+
+
+def _close(connection: Any) -> None:
+    """Say goodbye if still connected, then close the socket in any case, so
+    that stomp.py's receiver thread ends even when the broker never answers."""
+    with contextlib.suppress(Exception):
+        connection.disconnect()
+    with contextlib.suppress(Exception):
+        connection.transport.disconnect_socket()
 
 
 def _reason(exc: BaseException) -> str:
