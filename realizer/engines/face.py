@@ -23,6 +23,7 @@ faceFacs               one AU -> FAPs                               2         ad
 faceShift              a lexeme that stays after ``end``            2         add
 head                   NOD / SHAKE / TILT keyframes on FAPs 48-50   2         add
 gaze, gazeShift        eyeball FAPs 23-26, head 48/49 by influence  2         replace
+headDirectionShift     head pitch and yaw FAPs 48/49, held after    2         replace
 fap (rf:)              explicit low-level FAPs                      3         replace
 =====================  ===========================================  ========  =======
 
@@ -47,6 +48,11 @@ direction words (LEFT, RIGHT, UP, DOWN, UPLEFT, ...) used as ``target`` or
 target is straight ahead. With influence EYES the eyes turn alone (up to
 their limit); with NECK, HEAD, SHOULDER, WAIST or WHOLE the eyes turn up to
 ``eye_share_deg`` and the head takes the rest.
+
+headDirectionShift turns the head alone to its target (the scene's
+direction, or a direction word) by its ``stroke`` and holds it there, as
+the new rest direction, until another shift; a gaze in the meantime turns
+the head its own way and replaces it while it lasts.
 """
 
 from __future__ import annotations
@@ -95,7 +101,8 @@ from realizer.scheduler.timing import Phase, TimingModel, TimingModelError
 FACE_TYPES = ("faceLexeme", "faceFacs", "faceShift", "fap", "emotion", "viseme", "expression")
 HEAD_TYPES = ("head",)
 GAZE_TYPES = ("gaze", "gazeShift")
-HANDLED_TYPES = FACE_TYPES + HEAD_TYPES + GAZE_TYPES
+HEAD_SHIFT_TYPES = ("headDirectionShift",)
+HANDLED_TYPES = FACE_TYPES + HEAD_TYPES + GAZE_TYPES + HEAD_SHIFT_TYPES
 
 #: Layering of the behaviour types (see the module docstring).
 PRIORITY: dict[str, int] = {
@@ -108,9 +115,15 @@ PRIORITY: dict[str, int] = {
     "head": 2,
     "gaze": 2,
     "gazeShift": 2,
+    "headDirectionShift": 2,
     "fap": 3,
 }
-BLEND: dict[str, Blend] = {"fap": "replace", "gaze": "replace", "gazeShift": "replace"}
+BLEND: dict[str, Blend] = {
+    "fap": "replace",
+    "gaze": "replace",
+    "gazeShift": "replace",
+    "headDirectionShift": "replace",
+}
 
 #: Angle units per degree (FAPU "AU" is 1e-5 rad, Tekalp and Ostermann 2000, Table 7).
 ANGLE_UNITS_PER_DEGREE = math.pi / 180.0 * 1e5
@@ -271,6 +284,8 @@ class FaceEngine:
             base = _phase_table("head")
             extra = max(0, len(_strokes(syncs)) - 1)
             table = base[:3] + (_head_repeat(),) * extra + base[3:]
+        elif kind == "headDirectionShift":
+            table = _phase_table("head")  # the seven sync points of a head movement
         else:
             raise ConversionError(f"the face engine does not handle {kind!r}")
         if len(table) != len(syncs) - 1:
@@ -306,6 +321,8 @@ class FaceEngine:
             self._gaze(behaviour)
         elif behaviour.type == "head":
             self._head_lexeme(behaviour)
+        elif behaviour.type == "headDirectionShift":
+            self._head_direction(behaviour)
         self._valid.add(key)
 
     def configuration(self, behaviour: Behaviour) -> FapConfiguration:
@@ -384,6 +401,13 @@ class FaceEngine:
         blend = BLEND.get(kind, "add")
         if kind == "head":
             return self._head(behaviour, times, priority)
+        if kind == "headDirectionShift":
+            # turned by the stroke, then held: the head's new rest direction
+            arrive = times.get("stroke", times["end"])
+            envelope = Envelope(times["start"], arrive, math.inf, math.inf, "hermite")
+            return FapAnimation(
+                self._head_direction(behaviour), envelope, priority, blend, behaviour.id
+            )
         if kind in GAZE_TYPES:
             target = self._gaze(behaviour)
             if kind == "gazeShift":
@@ -455,6 +479,23 @@ class FaceEngine:
                 f"head {behaviour.id!r}: unknown lexeme {lexeme!r}; known: {', '.join(table)}"
             )
         return lexeme
+
+    def _head_direction(self, behaviour: Behaviour) -> FapConfiguration:
+        """Head pitch and yaw (FAPs 48, 49) of a headDirectionShift: the
+        scene's direction to its target, or a direction word's
+        DEFAULT_TARGET_ANGLE_DEG; any other target: straight ahead."""
+        target = (behaviour.param("target") or "").strip().upper().replace("_", "")
+        scene_yaw, scene_pitch = behaviour.param("sceneYaw"), behaviour.param("scenePitch")
+        if scene_yaw is not None and scene_pitch is not None:
+            yaw, pitch = float(scene_yaw), float(scene_pitch)
+        elif target in DIRECTIONS:
+            dy, dp = DIRECTIONS[target]
+            yaw, pitch = dy * DEFAULT_TARGET_ANGLE_DEG, dp * DEFAULT_TARGET_ANGLE_DEG
+        else:
+            yaw = pitch = 0.0
+        return FapConfiguration.from_mapping(
+            {49: yaw * ANGLE_UNITS_PER_DEGREE, 48: pitch * ANGLE_UNITS_PER_DEGREE}
+        )
 
     def _gaze(self, behaviour: Behaviour) -> FapConfiguration:
         data = load_engine_data()["gaze"]
