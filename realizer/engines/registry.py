@@ -52,6 +52,19 @@ class EngineRegistry:
                 return engine
         return self.default
 
+    def prepare(self, behaviour: Behaviour) -> None:
+        """Do the slow work of planning ``behaviour`` ahead, off the clock.
+
+        An engine may have ``prepare(behaviour)``: work whose result it keeps
+        for :meth:`plan` and that does not depend on time (the speech engine
+        synthesises the speech). A live service calls this before it reads
+        the clock for a block, so that a block whose speech takes long to
+        synthesise is timed from when its audio is ready (docs/speech.md).
+        """
+        prepare = getattr(self.engine_for(behaviour), "prepare", None)
+        if prepare is not None:
+            prepare(behaviour)
+
     def plan(self, behaviour: Behaviour) -> TimingModel:
         model = self.engine_for(behaviour).plan(behaviour)
         if model.syncs != behaviour.syncs:

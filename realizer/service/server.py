@@ -328,6 +328,10 @@ class RealizerService:
         """Service time in seconds since the clock started."""
         return asyncio.get_running_loop().time() - self._start
 
+    def _now_any_thread(self) -> float:
+        """:meth:`now` from a planner thread (the loop's clock is time.monotonic())."""
+        return time.monotonic() - self._start
+
     async def start(self) -> None:
         """Bind the port and start the clock."""
         loop = asyncio.get_running_loop()
@@ -708,6 +712,7 @@ class RealizerService:
                 character=request.get("character"),
                 fallback=default_character,
                 strict=strict,
+                clock=self._now_any_thread,  # a slow TTS runs first; timed after it
             )
             joined = result.character if result.character in self.stage.characters else None
             return result.messages, joined

@@ -291,8 +291,16 @@ class Stage:
         character: str | None = None,
         fallback: str | None = None,
         strict: bool = False,
+        clock: Callable[[], float] | None = None,
     ) -> SubmitResult:
         """Hand a BML document to its character's session at ``now`` seconds.
+
+        ``clock``: a live clock (the server's). Then the engines first do the
+        slow, clock-free part of planning (a TTS synthesis,
+        :meth:`realizer.engines.EngineRegistry.prepare`) and the block is timed
+        from the clock's reading after that, not from ``now``: a speech that
+        takes seconds to synthesise starts when its audio is ready instead of
+        in the past. Offline runs (``realizer render``) pass no clock.
 
         ``strict``: every warning refuses the block (the connection's
         ``/bml?strict=true``; :meth:`realizer.session.Session.receive_bml`).
@@ -313,6 +321,12 @@ class Stage:
             found = self.character(target)
         except PeerError as exc:
             return self._refuse(target, block.id, now, exc.warning_type, exc.message)
+        if clock is not None:
+            registry = getattr(found.session, "registry", None)
+            if registry is not None:
+                for behaviour in block.behaviours:
+                    registry.prepare(behaviour)
+            now = self._advance(max(now, clock()))
         with found.lock:
             if self.characters.get(target) is not found:  # freed meanwhile: once more
                 return self.submit_bml(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import json
 from typing import Any
@@ -114,3 +115,67 @@ def test_interrupting_a_speech_cuts_the_audio_sent_ahead() -> None:
         assert not np.frombuffer(chunk["samples"], dtype="<i2").any()
     before = [m for m in messages[: messages.index(cuts[0])] if m["type"] == "audio"]
     assert before and before[-1]["t"] + before[-1]["count"] / before[-1]["rate"] > cut
+
+
+class SlowTts:
+    """eSpeak NG taking ``delay`` seconds longer per synthesis, as Piper may."""
+
+    def __init__(self, delay: float) -> None:
+        from realizer.engines.speech import load_backend
+
+        self.inner = load_backend("espeak")
+        self.name = "slow-espeak"
+        self.delay = delay
+
+    def has_language(self, language: str) -> bool:
+        return bool(self.inner.has_language(language))
+
+    def synthesize(self, text: Any, language: str | None = None) -> Any:
+        import time
+
+        time.sleep(self.delay)
+        return self.inner.synthesize(text, language)
+
+
+def test_a_speech_that_takes_long_to_synthesise_starts_when_its_audio_is_ready() -> None:
+    """Regression: a block was timed from its arrival, so a speech whose
+    synthesis took longer than itself was over before it was planned: no
+    audio reached a viewer and every syncPointProgress came at once."""
+    from realizer.engines import EngineRegistry
+    from realizer.engines.face import FaceEngine
+    from realizer.engines.speech import SpeechEngine
+    from realizer.session import Session
+
+    delay = 1.5
+    engine = SpeechEngine(SlowTts(delay))  # type: ignore[arg-type]
+
+    def sessions(character: str) -> Session:
+        return Session(character, registry=EngineRegistry([FaceEngine.default(), engine]))
+
+    async def scenario() -> tuple[list[dict[str, Any]], list[dict[str, Any]], float]:
+        async with running_service(sessions, real_assets(), fps=30.0) as service:
+            viewer = await connect(f"ws://127.0.0.1:{service.port}/view")
+            await viewer.recv()
+            sent = service.now()
+            submitter = await submit(service.port, SPEECH)
+            messages = await collect(viewer, delay + 3.5 * max(UNIT, 1.0))
+            feedback = []
+            with contextlib.suppress(TimeoutError):
+                while True:
+                    feedback.append(json.loads(await asyncio.wait_for(submitter.recv(), 0.2)))
+            await submitter.close()
+            await viewer.close()
+            return messages, feedback, sent
+
+    messages, feedback, sent = asyncio.run(scenario())
+    audio = [m for m in messages if m["type"] == "audio"]
+    loud = [m for m in audio if np.abs(np.frombuffer(m["samples"], dtype="<i2")).max() > 1000]
+    assert loud, "no audible chunk reached the viewer"
+    progress = [f for f in feedback if f.get("kind") == "syncPointProgress" and ":s:" in f["xml"]]
+    assert progress
+    start = min(f["time"] for f in progress)
+    # timed from when the audio was ready, not from arrival ...
+    assert start >= sent + delay - 0.05
+    # ... so the speech plays out: its markers and end come over seconds, not at once
+    assert max(f["time"] for f in progress) - start > 1.0
+    assert loud[0]["t"] >= start - 0.2

@@ -170,6 +170,13 @@ class SpeechEngine:
     def handles(self, behaviour: Behaviour) -> bool:
         return behaviour.type == "speech" and behaviour.speech is not None
 
+    def prepare(self, behaviour: Behaviour) -> None:
+        """Synthesise the speech now (cached for :meth:`plan`); a text over the limit is left
+        for :meth:`plan` to refuse."""
+        speech = behaviour.speech
+        if speech is not None and len(speech.plain) <= self.limits.max_characters:
+            self._synthesis(behaviour)
+
     def plan(self, behaviour: Behaviour) -> TimingModel:
         speech = behaviour.speech
         assert speech is not None
