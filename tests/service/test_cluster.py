@@ -518,3 +518,51 @@ def test_viewers_through_a_gateway_make_a_bounded_number_of_characters(cluster: 
     codes, accepted = asyncio.run(scenario())
     assert codes == [None, None, 1013, 1013]
     assert accepted  # a submitter still gets a character
+
+
+def test_a_gateway_behind_on_frames_sends_each_viewer_the_newest_not_the_backlog() -> None:
+    """Regression: a gateway offered every frame to its viewers in the order
+    NATS delivered them, so one that fell behind (CPU-starved: 50 characters
+    x 200 viewers on a loaded machine) worked through its whole backlog and
+    its viewers saw frames hundreds of ms old. A frame now supersedes the
+    unsent one of its character and format, as in a viewer's mailbox: a
+    backlog read at once is fanned out as its newest frame; frames that come
+    one at a time all go out."""
+    import asyncio
+
+    pytest.importorskip("nats", reason="the cluster extra (nats-py) is not installed")
+    from realizer.service.cluster.bus import ClusterConfig
+    from realizer.service.cluster.gateway import ClusterGateway
+    from realizer.service.server import ServiceConfig
+
+    class Received:
+        def __init__(self) -> None:
+            self.frames: list[bytes] = []
+
+        def offer(self, frame: bytes, write_limit: int = 0) -> None:
+            self.frames.append(frame)
+
+    class Message:
+        def __init__(self, subject: str, data: bytes) -> None:
+            self.subject, self.data = subject, data
+
+    async def scenario() -> tuple[list[bytes], list[bytes], int]:
+        gateway = ClusterGateway(ServiceConfig(), ClusterConfig("nats://127.0.0.1:1"))
+        options = ViewOptions()
+        viewer, other = Received(), Received()
+        gateway.by_format = {
+            "anna": {format_key(options): {viewer}},  # type: ignore[set-item]
+            "bob": {format_key(options): {other}},  # type: ignore[set-item]
+        }
+        for n in range(5):  # a backlog: read in one go, before the loop runs again
+            await gateway._on_frame(Message(frame_subject("anna", options), b"a%d" % n))  # type: ignore[arg-type]
+        await gateway._on_frame(Message(frame_subject("bob", options), b"b0"))  # type: ignore[arg-type]
+        await asyncio.sleep(0)
+        for n in range(5, 8):  # one at a time
+            await gateway._on_frame(Message(frame_subject("anna", options), b"a%d" % n))  # type: ignore[arg-type]
+            await asyncio.sleep(0)
+        return viewer.frames, other.frames, gateway.frames_superseded
+
+    frames, others, superseded = asyncio.run(scenario())
+    assert frames == [b"a4", b"a5", b"a6", b"a7"]
+    assert others == [b"b0"] and superseded == 4

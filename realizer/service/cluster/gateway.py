@@ -18,8 +18,10 @@ character's owner over NATS:
   follow the character, and to the one that sent the request;
 * a viewer's frames come from ``realizer.v1.frame.<c>.*``, subscribed while
   the character has viewers here, and are offered to each viewer's
-  one-frame mailbox as they arrive, never decoded or retimed; the gateway
-  tells the workers which formats its viewers want (``realizer.v1.want``);
+  one-frame mailbox once the frames at hand are read (the newest of each
+  character and format: a backlog is not sent in turn), never decoded or
+  retimed; the gateway tells the workers which formats its viewers want
+  (``realizer.v1.want``);
 * when a character's owner changes (a lease watched in the bucket), its
   viewers get the mesh message again: a new subscription, whose frames
   carry the new owner's clock.
@@ -138,6 +140,11 @@ class ClusterGateway(RealizerService):
         self.models: dict[str, bytes] = {}
         self.by_format: dict[str, dict[str, set[Viewer]]] = {}
         self.frames_received = 0
+        #: frames superseded at the gateway before its fan-out ran (it was behind)
+        self.frames_superseded = 0
+        #: the newest frame per (character, format key) not yet fanned out
+        self._newest: dict[tuple[str, str], bytes] = {}
+        self._fan_out_due = False
         self._frame_subscriptions: dict[str, Subscription] = {}
         self._want_changed = asyncio.Event()
         self._subscribing = asyncio.Lock()
@@ -170,6 +177,7 @@ class ClusterGateway(RealizerService):
             characterIds=sorted(self.table.leases),
             workers=sorted(self.table.owners()),
             framesReceived=self.frames_received,
+            framesSuperseded=self.frames_superseded,
             nats=bool(self.nats is not None and self.nats.is_connected),
         )
         report.pop("frame", None)
@@ -382,17 +390,36 @@ class ClusterGateway(RealizerService):
                 await subscription.unsubscribe()
 
     async def _on_frame(self, msg: Msg) -> None:
+        """Keep the newest frame of each character and format; the fan-out
+        to the viewers runs once the frames at hand are read.
+
+        A frame supersedes the one before it (as in a viewer's one-frame
+        mailbox), so a gateway that falls behind (frames piling up in its
+        NATS connection while it waited for the CPU) sends each viewer the
+        newest frame of the backlog, not every old one in turn: it drops
+        frames instead of adding latency, as ``realizer serve``'s clock
+        skips ticks when it is behind."""
         # realizer.v1.frame.<token>.<format>
         parts = msg.subject.split(".")
         if len(parts) != 5:
             return
-        viewers = self.by_format.get(untoken(parts[3]), {}).get(parts[4])
-        if not viewers:
+        key = (untoken(parts[3]), parts[4])
+        if key[1] not in self.by_format.get(key[0], {}):
             return
         self.frames_received += 1
-        data = msg.data
-        for viewer in viewers:
-            viewer.offer(data, WRITE_LIMIT)
+        if key in self._newest:
+            self.frames_superseded += 1
+        self._newest[key] = msg.data
+        if not self._fan_out_due:
+            self._fan_out_due = True
+            asyncio.get_running_loop().call_soon(self._fan_out)
+
+    def _fan_out(self) -> None:
+        self._fan_out_due = False
+        newest, self._newest = self._newest, {}
+        for (character, key), data in newest.items():
+            for viewer in self.by_format.get(character, {}).get(key, ()):
+                viewer.offer(data, WRITE_LIMIT)
 
     def _wants(self) -> dict[str, set[ViewOptions]]:
         return {
@@ -430,6 +457,8 @@ class ClusterGateway(RealizerService):
     def _restart_viewers(self, character: str) -> None:
         """The character moved to another worker: its viewers start again
         from the mesh message (its frames now carry the new owner's clock)."""
+        for key in [k for k in self._newest if k[0] == character]:
+            del self._newest[key]  # the old owner's frames must not follow the new mesh
         mesh = self.meshes.get(character)
         if mesh is None:
             return
