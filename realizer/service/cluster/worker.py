@@ -340,6 +340,7 @@ class ClusterWorker(RealizerService):
                         now,
                         character=character,
                         strict=request.strict,
+                        clock=self._now_any_thread,  # a slow TTS runs first, as in serve
                     ),
                 )
             except RuntimeError:  # the planner is shut down: the worker is stopping
