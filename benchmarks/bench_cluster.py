@@ -97,16 +97,22 @@ async def measure(
         lean.append(viewer)
         logs.append(log)
 
+    accepted: dict[str, float] = {}  # block id -> arrival of its `accepted`
+
     async def drain() -> None:
         try:
-            async for _ in submitter:
-                pass
+            async for text in submitter:
+                if '"accepted"' in text:
+                    message = json.loads(text)
+                    if message.get("type") == "block" and message.get("state") == "accepted":
+                        accepted[message["block"]] = loop.time()
         except Exception:
             pass
 
     feedback = loop.create_task(drain())
     await asyncio.sleep(1.0)  # every viewer's interest reaches the owners
     probes: list[tuple[str, float]] = []
+    sent_at: dict[str, float] = {}
     window()
     began = loop.time()
     spacing = 0.6 / characters
@@ -118,6 +124,7 @@ async def measure(
         sent = loop.time()
         await submitter.send(json.dumps({"type": "bml", "bml": block, "character": character}))
         probes.append((character, sent))
+        sent_at[f"p{index}"] = sent
         index += 1
         phase = chance.uniform(0, 1 / FPS)
         await asyncio.sleep(max(0.0, began + index * spacing + phase - loop.time()))
@@ -128,7 +135,14 @@ async def measure(
         viewer.close()
     await submitter.close()
     feedback.cancel()
-    return {"logs": logs, "probes": probes, "began": began, "ended": ended}
+    acceptance = [accepted[i] - t for i, t in sent_at.items() if i in accepted]
+    return {
+        "logs": logs,
+        "probes": probes,
+        "began": began,
+        "ended": ended,
+        "acceptance": acceptance,
+    }
 
 
 def analyse(data: dict[str, Any], started: dict[str, float]) -> dict[str, Any]:
@@ -166,6 +180,7 @@ def analyse(data: dict[str, Any], started: dict[str, float]) -> dict[str, Any]:
         "pairs": pairs,
         "dropped": dropped,
         "expected": expected,
+        "acceptance": data["acceptance"],
     }
 
 
@@ -284,6 +299,7 @@ def run(quick: bool = False) -> None:
 
     print(
         f"{'load':>8} {'':>8} | {'latency p50':>11} {'p99':>6} {'seen':>11} | "
+        f"{'accepted p50':>12} {'p99':>6} | "
         f"{'delivery p99':>12} | {'dropped':>13} | CPU % of a core"
     )
     for load in loads:
@@ -293,6 +309,7 @@ def run(quick: bool = False) -> None:
             print(
                 f"{load[0]:>3} x {load[1]:<3} {'serve':>8} | {ms(one.latencies, 50):11.1f} "
                 f"{ms(one.latencies, 99):6.1f} {one.probes_seen:>5}/{one.probes:<5} | "
+                f"{ms(one.acceptance, 50):12.2f} {ms(one.acceptance, 99):6.2f} | "
                 f"{ms(one.delivery, 99):12.2f} | {one.dropped:>6}/{one.expected:<6} | "
                 f"server {one.cpu:.0f}"
             )
@@ -300,6 +317,7 @@ def run(quick: bool = False) -> None:
         print(
             f"{'':>9} {'cluster':>8} | {ms(many['latencies'], 50):11.1f} "
             f"{ms(many['latencies'], 99):6.1f} {many['seen']:>5}/{many['pairs']:<5} | "
+            f"{ms(many['acceptance'], 50):12.2f} {ms(many['acceptance'], 99):6.2f} | "
             f"{ms(many['delivery'], 99):12.2f} | {many['dropped']:>6}/{many['expected']:<6} | "
             f"{cpu}"
         )
