@@ -100,6 +100,12 @@ CORNER_PAIRS = {6: 53, 7: 54}
 LIP_CLOSE_M = 0.00035
 LIP_CLOSE_REACH_M = 0.004
 
+#: The value of FAP 63 (raise_nose, ENS) at which the nose is wrinkled as
+#: far as the artist's noseSneer targets go.
+NOSE_SNEER_FULL = 100.0
+#: ... and the distance from the nose tip within which the sneer fades out.
+NOSE_TIP_CLEAR_M = 0.008
+
 #: Intervals of the eyelid-closing tables (FAPs 19, 20) along the blink's arc.
 BLINK_STEPS = 6
 
@@ -1320,6 +1326,32 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     ease(61, left, 0.5 * nose, (1.0, 1.0, 1.0), -20)
     ease(62, right, 0.5 * nose, (1.0, 1.0, 1.0), -20)
     ease(63, up, 0.8 * nose, (1.0, 1.0, 1.0), -20)
+    # Raising the nose (positive 63) also wrinkles it, as AU 9 does ("Parameterized
+    # Facial Expression Synthesis Based on MPEG-4", Table 1: raise nose +
+    # stretch nose): the artist's noseSneerLeft + noseSneerRight, full at
+    # NOSE_SNEER_FULL ENS, added to the tip's sphere (away from the tip;
+    # lowering the nose does not unwrinkle it).
+    fapu_ens = float((fp["3.5"][1] + fp["3.6"][1]) / 2 - fp["9.15"][1]) / 1024
+    sneer = shape("noseSneerLeft") + shape("noseSneerRight")
+    sneer[eyeballs] = 0.0
+    # ... but not at the tip itself (9.3 moves one ENS per unit, the sphere's):
+    # the sneer fades out within NOSE_TIP_CLEAR_M of it.
+    near_tip = np.linalg.norm(v - fp["9.3"], axis=1) / NOSE_TIP_CLEAR_M
+    sneer *= np.where(near_tip < 1.0, 0.5 - 0.5 * np.cos(np.pi * near_tip), 1.0)[:, None]
+    # The target also lowers the brows (the procerus); raise_nose keeps to the
+    # nose and cheeks: it fades out from the pupils' height to the brows'.
+    low, high = float(fp["3.5"][1]), float(fp["4.1"][1])
+    above = np.clip((v[:, 1] - low) / (high - low), 0.0, 1.0)
+    sneer *= (0.5 + 0.5 * np.cos(np.pi * above))[:, None]
+    wrinkled = np.setdiff1d(np.flatnonzero(np.linalg.norm(sneer, axis=1) > 1e-6), eyeballs)
+    deformers.append(
+        shape_table(
+            63,
+            (-1000.0, 0.0, 1000.0),
+            [np.zeros_like(sneer), sneer / (NOSE_SNEER_FULL * fapu_ens)],
+            wrinkled,
+        )
+    )
     ease(64, right, 0.8 * nose, (1.0, 1.0, 1.0), -20)
 
     # Ears: each moves whole (the skin lateral of the skull where it is).

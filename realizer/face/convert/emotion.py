@@ -5,6 +5,9 @@ Data (``realizer/face/data/emotion``):
 - ``profiles.txt``: every archetypal profile of Raouzaiou et al. 2002, Table 5 in the
   profile file format of Paul 2010, figure 6.5 (a label line ``Fear 8``, then
   ``F3 [400, 560], F5 [-240, -160], ...``).
+- ``additions.txt``: FAPs added to some of those profiles (same format), for
+  face formations the paper's vocabulary or its FAP-to-AU mapping (Table 1)
+  names but a profile leaves out; they never change a range of Table 5.
 - ``wheels.txt``: where the six archetypes sit on Plutchik's wheel (angle in
   degrees, Whissell activation) and which profile each uses by default.
 - ``vocabulary.txt``: emotion words with activation, evaluation, angle and,
@@ -114,6 +117,10 @@ class Profile:
     def label(self) -> str:
         return f"{self.archetype.capitalize()} {self.number}"
 
+    @property
+    def key(self) -> tuple[str, int]:
+        return (self.archetype, self.number)
+
 
 @dataclass(frozen=True, slots=True)
 class ProfileSet:
@@ -203,6 +210,30 @@ def parse_profiles(text: str, *, source: str = "<profiles>") -> ProfileSet:
             raise DataFileError(f"profile {label} appears twice", source=source, line=label_line)
         profiles.append(profile)
     return ProfileSet(tuple(profiles))
+
+
+def add_ranges(profiles: ProfileSet, additions: ProfileSet) -> ProfileSet:
+    """``profiles`` with the FAP ranges of ``additions`` (same file format)
+    appended to the profiles of the same label. An addition may only add
+    FAPs a profile lacks, never change one it has: the ranges of Raouzaiou
+    et al. 2002, Table 5 stay as transcribed."""
+    merged = []
+    for profile in profiles.profiles:
+        extra = [a for a in additions.profiles if (a.archetype, a.number) == profile.key]
+        ranges = profile.ranges
+        for addition in extra:
+            clash = sorted(set(dict(addition.ranges)) & set(dict(ranges)))
+            if clash:
+                raise ConversionError(
+                    f"addition to {profile.label} repeats F{clash[0]} of the profile"
+                )
+            ranges = ranges + addition.ranges
+        merged.append(Profile(profile.archetype, profile.number, ranges))
+    known = {p.key for p in profiles.profiles}
+    for addition in additions.profiles:
+        if addition.key not in known:
+            raise ConversionError(f"addition to {addition.label}, which is no profile")
+    return ProfileSet(tuple(merged))
 
 
 def _num(value: float) -> str:
@@ -546,9 +577,11 @@ class EmotionConverter:
         )
 
 
-@lru_cache(maxsize=1)
-def load_default_converter() -> EmotionConverter:
-    """The converter over the shipped data files."""
+@lru_cache(maxsize=2)
+def load_default_converter(*, additions: bool = True) -> EmotionConverter:
+    """The converter over the shipped data files: the profiles of
+    ``profiles.txt`` (Raouzaiou et al. 2002, Table 5) with the FAPs of
+    ``additions.txt`` added (``additions=False``: Table 5's alone)."""
     folder = DATA_DIR / "emotion"
 
     def read(name: str) -> tuple[str, str]:
@@ -558,8 +591,12 @@ def load_default_converter() -> EmotionConverter:
     profiles_text, profiles_source = read("profiles.txt")
     wheels_text, wheels_source = read("wheels.txt")
     words_text, words_source = read("vocabulary.txt")
+    profiles = parse_profiles(profiles_text, source=profiles_source)
+    if additions:
+        extra_text, extra_source = read("additions.txt")
+        profiles = add_ranges(profiles, parse_profiles(extra_text, source=extra_source))
     return EmotionConverter(
-        parse_profiles(profiles_text, source=profiles_source),
+        profiles,
         parse_wheels(wheels_text, source=wheels_source),
         parse_vocabulary(words_text, source=words_source),
     )

@@ -7,11 +7,16 @@ seed 000 rounds to units. docs/emotion.md explains each deviation tested here.
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from realizer.face.convert.emotion import (
     ARCHETYPES,
+    EmotionConverter,
     FapRange,
+    ProfileSet,
+    add_ranges,
     angular_weights,
     between_archetypes,
     format_profiles,
@@ -120,10 +125,36 @@ def test_afraid_is_the_archetypal_profile_itself() -> None:
     assert ranges(afraid.as_dict()) == FEAR_8
 
 
+def printed_sadness_converter() -> EmotionConverter:
+    """The converter over Table 5 alone, with Sadness 0's eyelids as printed
+    (profiles.txt reads them as the eye's opening f12, negated, so that sad
+    droops the lids; the paper's worked example combines them as printed)."""
+    converter = load_default_converter(additions=False)
+    printed = parse_profiles(
+        "Sadness 0\nF19 [-265, -41], F20 [-270, -52], F21 [-265, -41], F22 [-270, -52], "
+        "F31 [30, 140], F32 [26, 134]\n"
+    ).profiles[0]
+    profiles = tuple(printed if p.key == ("sadness", 0) else p for p in converter.profiles.profiles)
+    return dataclasses.replace(converter, profiles=ProfileSet(profiles))
+
+
 def test_guilty_between_afraid_and_sad_follows_seed_001_table_8() -> None:
-    guilty = load_default_converter().for_word("guilty")
+    guilty = printed_sadness_converter().for_word("guilty")
     assert guilty.rule == "between" and guilty.sources == ("Fear 8", "Sadness 0")
     assert_ranges_close(guilty.as_dict(), GUILTY, tolerance=5)
+
+
+def test_guilty_from_the_shipped_files_drops_the_lids_that_fear_and_sadness_move_apart() -> None:
+    """Fear 8 widens the eyes, Sadness 0 (read as f12) droops the lids:
+    opposite signs whose translated ranges do not meet (rule 3), so guilty
+    keeps the rest of Table 8 (and the lip corners sadness's additions
+    bring, halved by rule 4) but no F19..F22."""
+    guilty = load_default_converter(additions=False).for_word("guilty").as_dict()
+    assert not set(guilty) & {19, 20, 21, 22}
+    table_8 = {fap: r for fap, r in GUILTY.items() if fap not in (19, 20, 21, 22)}
+    assert_ranges_close(guilty, table_8, tolerance=5)
+    with_additions = load_default_converter().for_word("guilty").as_dict()
+    assert with_additions[12].center == pytest.approx(-220 * 4.0 / (2 * 3.9), abs=1)
 
 
 def test_guilty_fap19_intermediate_numbers_of_equation_12() -> None:
@@ -200,11 +231,36 @@ def test_opposite_signs_intersect_and_vanish_when_disjoint() -> None:
 
 
 def test_interpolation_is_continuous_at_the_archetypes() -> None:
-    converter = load_default_converter()
-    near_fear = converter.for_point(70.3 + 1e-4, 4.9).as_dict()
-    fear = converter.for_point(70.3, 4.9).as_dict()
-    for fap in (19, 31):  # FAPs in both fear 8 and sadness 0
-        assert near_fear[fap].center == pytest.approx(fear[fap].center, abs=0.01)
+    for converter, faps in (
+        (load_default_converter(), (31,)),  # in both fear 8 and sadness 0, same sign
+        (printed_sadness_converter(), (19, 31)),
+    ):
+        near_fear = converter.for_point(70.3 + 1e-4, 4.9).as_dict()
+        fear = converter.for_point(70.3, 4.9).as_dict()
+        for fap in faps:
+            assert near_fear[fap].center == pytest.approx(fear[fap].center, abs=0.01)
+
+
+def test_additions_add_faps_and_never_change_a_range_of_table_5() -> None:
+    table_5 = load_default_converter(additions=False).profiles
+    shipped = load_default_converter().profiles
+    added = 0
+    for profile in table_5.profiles:
+        merged = shipped.get(profile.archetype, profile.number).as_dict()
+        assert {f: merged[f] for f in profile.as_dict()} == profile.as_dict()
+        added += len(merged) - len(profile.as_dict())
+    assert added > 0
+    assert shipped.get("sadness", 0).as_dict()[12].high < 0  # lip corners down
+    assert shipped.get("anger", 0).as_dict()[5].low > 0  # lower lip up: pressed lips
+    assert shipped.get("disgust", 0).as_dict()[63].low > 0  # nose wrinkle
+
+
+def test_an_addition_may_not_repeat_a_faps_range_or_name_no_profile() -> None:
+    profiles = parse_profiles("Sadness 0\nF31 [30, 140]\n")
+    with pytest.raises(ConversionError, match="repeats F31"):
+        add_ranges(profiles, parse_profiles("Sadness 0\nF31 [0, 10]\n"))
+    with pytest.raises(ConversionError, match="no profile"):
+        add_ranges(profiles, parse_profiles("Anger 7\nF5 [0, 10]\n"))
 
 
 def test_wheel_points_wrap_around_zero() -> None:
