@@ -1,0 +1,40 @@
+"""realizer fap-audit: check every FAP displacement of a face on its mesh.
+
+For each of the 127 displacements of FAPs 3..68 (each direction of a
+bidirectional FAP on its own, at the values ``realizer fap-sheet`` shows)
+prints whether the skin folds over, whether the FAP's probe point moves the
+way "Face and 2-D mesh animation in MPEG-4", Table 7 says, whether a one-sided
+FAP leaves the other side, and whether the motion is large enough to see
+(:mod:`realizer.face.audit`). Exits 1 when any displacement fails.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from realizer.commands import load_face_option, plain_text
+
+
+def run(args: argparse.Namespace) -> int:
+    from realizer.commands.fap_sheet import load_sheet_entries
+    from realizer.face.audit import audit_face, format_audit
+
+    face = load_face_option(args.face)
+    poses = [(e.fap, e.value, e.jaw_open) for e in load_sheet_entries()]
+    rows = audit_face(face, poses)
+    print(format_audit(rows))
+    return 0 if all(r.ok for r in rows) else 1
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "fap-audit",
+        help="check every FAP displacement of a face: folds, direction, side, size",
+        description=plain_text(__doc__.split("\n\n")[0]) if __doc__ else None,
+    )
+    parser.add_argument(
+        "--face",
+        help="a face file (STEM, STEM.npz or STEM.xml); default: the built-in default face",
+    )
+    parser.set_defaults(run=run)
