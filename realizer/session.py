@@ -146,6 +146,39 @@ class _Record:
 
 
 @dataclass(frozen=True, slots=True)
+class AdmittedBlock:
+    """A block :meth:`Session.admit_bml` let in, with what planning needs:
+    the time it arrived, its start (after the blocks it is appended to) and
+    the plans of the session's earlier blocks (for references to their sync
+    points)."""
+
+    result: ParseResult
+    now: float
+    strict: bool
+    start: float
+    earlier: tuple[TimedPlan, ...]
+    #: behaviours of other active blocks whose resource channels are taken
+    occupied: list[tuple[str, ScheduledBehaviour]] = field(default_factory=list)
+
+
+@dataclass(slots=True)
+class PlannedBlock:
+    """What :meth:`Session.plan_bml` made of an admitted block: its warnings
+    (queued by :meth:`Session.commit_bml`), and, unless planning failed
+    (``plan`` None), the plan, its prediction, events and animations."""
+
+    admitted: AdmittedBlock
+    notes: list[Feedback]
+    plan: TimedPlan | None = None
+    predicted: Feedback | None = None
+    events: list[_Event] = field(default_factory=list)
+    animations: list[Any] = field(default_factory=list)
+    audio: list[Any] = field(default_factory=list)
+    owned: dict[str, list[Any]] = field(default_factory=dict)
+    engine_notes: int = 0  # warnings of the engines (refuse the block in strict mode)
+
+
+@dataclass(frozen=True, slots=True)
 class SessionLimits:
     """Named limits of one session."""
 
@@ -227,7 +260,24 @@ class Session:
 
         Feedback (warnings, then the prediction) is queued; returns the plan,
         or None when the block was refused (a warningFeedback says why).
+
+        The same as :meth:`admit_bml`, :meth:`plan_bml` and
+        :meth:`commit_bml` in a row; the service calls them apart, so that
+        the session is only held (from its clock) while admitting and
+        committing, not while the block is planned.
         """
+        admitted = self.admit_bml(text, now, strict=strict)
+        if admitted is None:
+            return None
+        return self.commit_bml(self.plan_bml(admitted), now)
+
+    def admit_bml(
+        self, text: str | bytes | ParseResult, now: float, *, strict: bool = False
+    ) -> AdmittedBlock | None:
+        """The first step of :meth:`receive_bml`: parse (unless parsed), refuse
+        a duplicate, act on the composition (REPLACE and BMLA interrupts), and
+        take what planning needs from the session (the start, the sync times of
+        earlier blocks). None: refused (a warning is queued)."""
         self._advance(now)
         # What time has passed since the last tick is reported first, so
         # that the feedback queue stays in time order (and a block that
@@ -245,17 +295,7 @@ class Session:
                                self.character_id))  # fmt: skip
             return None
         block = result.block
-        if block.id in self._blocks and self._blocks[block.id].lifecycle.state in ACTIVE:
-            self._emit(
-                warning(
-                    block.id,
-                    block.id,
-                    str(WarningType.PARSING_FAILURE),
-                    f"block {block.id!r} is already running; the new one is refused",
-                    now,
-                    self.character_id,
-                )
-            )
+        if self._refuse_duplicate(block.id, now):
             return None
         control = block.control
         if block.composition == "REPLACE" and not strict:
@@ -276,32 +316,64 @@ class Session:
                                    self.character_id))  # fmt: skip
             elif earlier.lifecycle.state in ACTIVE:
                 start = max(start, earlier.plan.end)
+        # the plans (immutable) only: their sync times are collected off the lock
+        plans = tuple(record.plan for record in self._blocks.values())
+        # strict mode judges the block as it would run: what its REPLACE
+        # or bmla:interrupt would stop takes no channel from it
+        occupied = self._occupied(
+            start,
+            stops=set(control.interrupt)
+            | (set(self.active_blocks) if block.composition == "REPLACE" else set()),
+        )
+        return AdmittedBlock(result, now, strict, start, plans, occupied)
+
+    def _refuse_duplicate(self, block_id: str, now: float) -> bool:
+        """True (and a warning) when a block of this id is pending or running."""
+        found = self._blocks.get(block_id)
+        if found is None or found.lifecycle.state not in ACTIVE:
+            return False
+        self._emit(
+            warning(
+                block_id,
+                block_id,
+                str(WarningType.PARSING_FAILURE),
+                f"block {block_id!r} is already running; the new one is refused",
+                now,
+                self.character_id,
+            )
+        )
+        return True
+
+    def plan_bml(self, admitted: AdmittedBlock) -> PlannedBlock:
+        """The second step of :meth:`receive_bml`: schedule the block and
+        realize its behaviours (solver, face and speech engines).
+
+        Reads nothing of the session that a tick changes (what it needs was
+        taken by :meth:`admit_bml`) and changes nothing: its warnings are kept
+        in the result for :meth:`commit_bml`. So it may run on another thread
+        while the session ticks; only one block of a session at a time.
+        """
+        block = admitted.result.block
+        now = admitted.now
+        notes: list[Feedback] = []
         external: dict[tuple[str, str, str], float] = {}
-        for record in self._blocks.values():
-            external.update(record.plan.global_keys())
-        lifecycle = BlockLifecycle(block.id)
+        for earlier in admitted.earlier:
+            external.update(earlier.global_keys())
         try:
             plan = schedule_block(
                 block,
-                start=start,
+                start=admitted.start,
                 registry=self.registry,
-                dropped=result.dropped,
+                dropped=admitted.result.dropped,
                 external=external,
-                warnings=result.warnings,
-                # strict mode judges the block as it would run: what its REPLACE
-                # or bmla:interrupt would stop takes no channel from it
-                occupied=self._occupied(
-                    start,
-                    stops=set(control.interrupt)
-                    | (set(self.active_blocks) if block.composition == "REPLACE" else set()),
-                ),
+                warnings=admitted.result.warnings,
+                occupied=admitted.occupied,
             )
         except SchedulingFailed as exc:
             for note in exc.warnings:
-                self._emit(warning(block.id, note.id, str(note.type), note.message, now,
-                                   self.character_id))  # fmt: skip
-            self._failed(block, start, lifecycle)
-            return None
+                notes.append(warning(block.id, note.id, str(note.type), note.message, now,
+                                     self.character_id))  # fmt: skip
+            return PlannedBlock(admitted, notes)
         try:
             # Everything that can still go wrong with this block happens
             # before its prediction is sent: a prediction is a promise that
@@ -314,16 +386,16 @@ class Session:
                 now,
                 self.character_id,
             )
-            if control.preplan:
+            if block.control.preplan:
                 events: list[_Event] = []
                 animations: list[Any] = []
                 audio: list[Any] = []
                 owned: dict[str, list[Any]] = {}
             else:
-                events = self._events(plan)
-                animations, audio, owned = self._realize(plan)
+                events = _events(plan, 0)
+                animations, audio, owned = self._realize(plan, notes, now)
         except Exception as exc:  # a bug or an unforeseen value: the block fails, cleanly
-            self._emit(
+            notes.append(
                 warning(
                     block.id,
                     block.id,
@@ -334,35 +406,67 @@ class Session:
                     self.character_id,
                 )
             )
-            self._failed(block, start, lifecycle)
-            return None
+            return PlannedBlock(admitted, notes)
         for note in plan.warnings:
-            self._emit(warning(block.id, note.id, str(note.type), note.message, now,
-                               self.character_id))  # fmt: skip
-        notes = 0
+            notes.append(warning(block.id, note.id, str(note.type), note.message, now,
+                                 self.character_id))  # fmt: skip
+        engine_notes = 0
         for scheduled in plan.behaviours:
             for text in self.registry.notes(scheduled.behaviour):
-                notes += 1
-                self._emit(warning(block.id, f"{block.id}:{scheduled.id}",
-                                   str(WarningType.CANNOT_CREATE_BEHAVIOR),
-                                   f"{scheduled.id}: {text}", now, self.character_id))  # fmt: skip
-        if strict and (plan.warnings or notes):
+                engine_notes += 1
+                notes.append(warning(block.id, f"{block.id}:{scheduled.id}",
+                                     str(WarningType.CANNOT_CREATE_BEHAVIOR),
+                                     f"{scheduled.id}: {text}", now,
+                                     self.character_id))  # fmt: skip
+        return PlannedBlock(admitted, notes, plan, predicted, events, animations, audio, owned,
+                            engine_notes)  # fmt: skip
+
+    def commit_bml(self, planned: PlannedBlock, now: float) -> TimedPlan | None:
+        """The last step of :meth:`receive_bml`: queue the planning's warnings
+        and the prediction, record the block and report what is already due.
+
+        ``now``: the session time of the commit (the arrival time or later:
+        the session may have ticked while the block was planned; the block
+        keeps the start it was planned for, and what of it is already past is
+        reported now). Returns the plan, or None when the block was refused.
+        """
+        self._advance(now)
+        now = self.now
+        admitted = planned.admitted
+        block = admitted.result.block
+        strict = admitted.strict
+        lifecycle = BlockLifecycle(block.id)
+        for note in planned.notes:
+            self._emit(note)
+        if self._refuse_duplicate(block.id, now):  # one came meanwhile (another caller)
+            return None
+        plan = planned.plan
+        if plan is None or planned.predicted is None:
+            self._failed(block, admitted.start, lifecycle)
+            return None
+        if strict and (plan.warnings or planned.engine_notes):
             kind = plan.warnings[0].type if plan.warnings else WarningType.CANNOT_CREATE_BEHAVIOR
             self._emit(warning(block.id, block.id, str(kind),
-                               f"strict mode: {len(plan.warnings) + notes} warning(s) above are "
-                               f"errors; block {block.id!r} is refused", now,
-                               self.character_id))  # fmt: skip
-            self._failed(block, start, lifecycle)
+                               f"strict mode: {len(plan.warnings) + planned.engine_notes} "
+                               f"warning(s) above are errors; block {block.id!r} is refused",
+                               admitted.now, self.character_id))  # fmt: skip
+            self._failed(block, admitted.start, lifecycle)
             return None
+        control = block.control
         if block.composition == "REPLACE" and strict:
             for block_id in self.active_blocks:
                 self.interrupt(block_id, now)
+        predicted = planned.predicted
         if control.preplan:  # BMLA: the prediction says it waits to be activated
             predicted = prediction(block.id, plan.start, plan.end,
-                                   [(s.behaviour, s.times) for s in plan.behaviours], now,
-                                   self.character_id, status="PENDING")  # fmt: skip
+                                   [(s.behaviour, s.times) for s in plan.behaviours],
+                                   admitted.now, self.character_id,
+                                   status="PENDING")  # fmt: skip
         self._emit(predicted)
-        record = _Record(plan, lifecycle, deque(events), animations, audio, result, owned)
+        self._order += 1
+        events = [(e[0], self._order, *e[2:]) for e in planned.events]
+        record = _Record(plan, lifecycle, deque(events), planned.animations, planned.audio,
+                         admitted.result, planned.owned)  # fmt: skip
         record.controls = _controls(plan)
         record.preplanned = control.preplan
         self._blocks[block.id] = record
@@ -449,17 +553,19 @@ class Session:
         if not later.preplanned and later.plan.start < record.plan.end:
             self._start_at(later, record.plan.end, now)
 
-    def _realize(self, plan: TimedPlan) -> tuple[list[Any], list[Any], dict[str, list[Any]]]:
-        """The animations, audio clips and animations by behaviour of a solved plan."""
+    def _realize(
+        self, plan: TimedPlan, notes: list[Feedback] | None = None, now: float | None = None
+    ) -> tuple[list[Any], list[Any], dict[str, list[Any]]]:
+        """The animations, audio clips and animations by behaviour of a solved
+        plan; warnings go to ``notes`` (at ``now``) when given, else are queued."""
         animations: list[Any] = []
         audio: list[Any] = []
         owned: dict[str, list[Any]] = {}
         for scheduled in plan.behaviours:
             if scheduled.id in plan.unrealized:
                 continue
-            realized = self.registry.realize(
-                self._aimed(plan.id, scheduled.behaviour, warn=True), scheduled.times
-            )
+            aimed = self._aimed(plan.id, scheduled.behaviour, warn=True, notes=notes, now=now)
+            realized = self.registry.realize(aimed, scheduled.times)
             if realized is None:
                 continue
             # A speech realizes as several animations (lip sync) and audio.
@@ -472,7 +578,14 @@ class Session:
                 audio.append(clip)
         return animations, audio, owned
 
-    def _aimed(self, block_id: str, behaviour: Any, warn: bool = False) -> Any:
+    def _aimed(
+        self,
+        block_id: str,
+        behaviour: Any,
+        warn: bool = False,
+        notes: list[Feedback] | None = None,
+        now: float | None = None,
+    ) -> Any:
         """The behaviour with its scene target's direction (``sceneYaw``,
         ``scenePitch``: degrees, yaw to the left, pitch down) for the engine;
         a target neither the scene nor the direction words know: a warning."""
@@ -485,11 +598,16 @@ class Session:
         if found is None:
             if warn:
                 known = ", ".join(sorted(self.scene.targets)) if self.scene else "none"
-                self._emit(warning(block_id, f"{block_id}:{behaviour.id}",
-                                   str(WarningType.NO_SUCH_TARGET),
-                                   f"{behaviour.id}: target {target!r} is not in the scene "
-                                   f"(targets: {known}; or a direction word); it looks straight "
-                                   "ahead", self.now, self.character_id))  # fmt: skip
+                note = warning(block_id, f"{block_id}:{behaviour.id}",
+                               str(WarningType.NO_SUCH_TARGET),
+                               f"{behaviour.id}: target {target!r} is not in the scene "
+                               f"(targets: {known}; or a direction word); it looks straight "
+                               "ahead", self.now if now is None else now,
+                               self.character_id)  # fmt: skip
+                if notes is None:
+                    self._emit(note)
+                else:
+                    notes.append(note)
             return behaviour
         yaw, pitch = found
         params = (*behaviour.params, ("sceneYaw", f"{yaw:.6f}"), ("scenePitch", f"{-pitch:.6f}"))
@@ -633,20 +751,7 @@ class Session:
     def _events(self, plan: TimedPlan) -> list[_Event]:
         """The block's feedback events, in the order of :data:`_Event`."""
         self._order += 1
-        seq = self._order
-        # Equal instants are equal as the feedback writes them (microseconds),
-        # not as the solver's floating point happens to leave them.
-        events: list[_Event] = [(round(plan.start, 6), seq, 0, 0, 0, "start", "", "", plan.start)]
-        for index, scheduled in enumerate(plan.behaviours):
-            canonical = scheduled.behaviour.syncs
-            for sync, time in scheduled.times.items():
-                rank = canonical.index(sync) if sync in canonical else len(canonical)
-                events.append(
-                    (round(time, 6), seq, 1, index, rank, "sync", scheduled.id, sync, time)
-                )
-        events.append((round(plan.end, 6), seq, 2, 0, 0, "end", "", "", plan.end))
-        events.sort()
-        return events
+        return _events(plan, self._order)
 
     def interrupt(self, block_id: str, now: float) -> bool:
         """Interrupt a pending or running block; False (and a warning) if there is none."""
@@ -839,6 +944,22 @@ DIRECTION_WORDS = frozenset(
 
 #: Behaviour types of AsapRealizer's BMLA that control the realizer.
 CONTROL_TYPES = frozenset({"activate", "interrupt", "parameterValueChange"})
+
+
+def _events(plan: TimedPlan, seq: int) -> list[_Event]:
+    """A block's feedback events, in the order of :data:`_Event` (``seq``: the
+    block's sequence number in the session)."""
+    # Equal instants are equal as the feedback writes them (microseconds),
+    # not as the solver's floating point happens to leave them.
+    events: list[_Event] = [(round(plan.start, 6), seq, 0, 0, 0, "start", "", "", plan.start)]
+    for index, scheduled in enumerate(plan.behaviours):
+        canonical = scheduled.behaviour.syncs
+        for sync, time in scheduled.times.items():
+            rank = canonical.index(sync) if sync in canonical else len(canonical)
+            events.append((round(time, 6), seq, 1, index, rank, "sync", scheduled.id, sync, time))
+    events.append((round(plan.end, 6), seq, 2, 0, 0, "end", "", "", plan.end))
+    events.sort()
+    return events
 
 
 def _controls(plan: TimedPlan) -> dict[str, Any]:

@@ -145,10 +145,15 @@ class Character:
     deadlines: dict[str, float] = field(default_factory=dict)
     interrupting: set[str] = field(default_factory=set)
     idle_since: float | None = None
-    #: held while the session is used: a planner thread holds it while it
-    #: plans a block, and the clock skips the character for that tick
-    #: instead of waiting for it
+    #: held while the session is used (a tick; a block admitted or
+    #: committed; an interrupt), each time briefly: never while a block is
+    #: planned. The clock skips, for one tick, a character whose lock is
+    #: held instead of waiting for it.
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    #: held by a planner thread for the whole of one submission or
+    #: interrupt of this character (so they keep their order, and a block
+    #: is planned against the session it is committed to); never by the clock
+    submitting: threading.Lock = field(default_factory=threading.Lock, repr=False)
     #: made for a viewer and never given a block: counted against
     #: ``limits.viewer_characters``
     viewer_made: bool = False
@@ -327,67 +332,110 @@ class Stage:
                 for behaviour in block.behaviours:
                     registry.prepare(behaviour)
             now = self._advance(max(now, clock()))
-        with found.lock:
-            if self.characters.get(target) is not found:  # freed meanwhile: once more
-                return self.submit_bml(
-                    text, now, character=character, fallback=fallback, strict=strict
-                )
-            return self._submit(found, parsed, self._advance(now), strict)
+        with found.submitting:
+            with found.lock:
+                if self.characters.get(target) is not found:  # freed meanwhile: once more
+                    return self.submit_bml(
+                        text, now, character=character, fallback=fallback, strict=strict
+                    )
+                now = self._advance(now)
+                if not hasattr(found.session, "plan_bml"):  # a stand-in: all at once
+                    return self._submit(found, parsed, now, strict)
+                refused = self._queue_full(found, parsed.block.id, now)
+                if refused is not None:
+                    return refused
+                try:
+                    admitted = found.session.admit_bml(parsed, now, strict=strict)
+                except Exception as exc:
+                    return self._planning_failed(found, parsed.block.id, now, exc)
+                if admitted is None:
+                    return self._submitted(found, parsed.block.id, now, None)
+            # Planned with the session free: its clock ticks meanwhile.
+            try:
+                planned = found.session.plan_bml(admitted)
+            except Exception as exc:
+                with found.lock:
+                    return self._planning_failed(found, parsed.block.id, self._advance(now), exc)
+            with found.lock:
+                now = self._advance(now)
+                try:
+                    plan = found.session.commit_bml(planned, now)
+                except Exception as exc:
+                    return self._planning_failed(found, parsed.block.id, now, exc)
+                return self._submitted(found, parsed.block.id, now, plan)
+
+    def _queue_full(self, found: Character, block_id: str, now: float) -> SubmitResult | None:
+        if len(found.open_blocks) < self.limits.queued_blocks:
+            return None
+        return self._refuse(
+            found.id,
+            block_id,
+            now,
+            LimitExceeded.warning_type,
+            f"limit of {self.limits.queued_blocks} queued blocks reached for "
+            f"character {found.id!r}; block {block_id!r} refused",
+        )
 
     def _submit(self, found: Character, parsed: Any, now: float, strict: bool) -> SubmitResult:
-        """The part of :meth:`submit_bml` that uses the session (``found.lock`` held)."""
+        """:meth:`submit_bml` with a session that plans in one call
+        (``found.lock`` held)."""
         block = parsed.block
-        target = found.id
-        if len(found.open_blocks) >= self.limits.queued_blocks:
-            return self._refuse(
-                target,
-                block.id,
-                now,
-                LimitExceeded.warning_type,
-                f"limit of {self.limits.queued_blocks} queued blocks reached for "
-                f"character {target!r}; block {block.id!r} refused",
-            )
-        messages: list[Outgoing] = []
+        refused = self._queue_full(found, block.id, now)
+        if refused is not None:
+            return refused
         try:
             plan = found.session.receive_bml(parsed, now, strict=strict)  # parsed once, here
         except Exception as exc:
-            # The contract says sessions queue warnings and return None; a
-            # session that raises is answered the same way, and the block is
-            # refused (whatever feedback it made for it is dropped, so no
-            # prediction of a block that will not run reaches the client).
-            plan = None
-            text = (
-                str(exc)
-                if isinstance(exc, RealizerError)
-                else f"internal error while planning block {block.id!r}; the block is refused"
-            )
-            if not isinstance(exc, RealizerError):
-                logger.exception("session of character %r failed on block %r", target, block.id)
-            kind = str(getattr(exc, "warning_type", "CANNOT_CREATE_BEHAVIOR"))
-            produced = [
-                fb for fb in self._take(found) if fb.block_id != block.id or fb.kind == "warning"
-            ]
-            messages.extend(self._route(found, self._bounded(found.id, block.id, now, produced)))
-            messages.extend(self._end_lost_block(found, block.id, now))
-            messages.extend(self._warning(target, block.id, now, kind, text))
-            messages.append(BlockEvent(target, block.id, "rejected", now))
-            return SubmitResult(target, block.id, False, tuple(messages))
+            return self._planning_failed(found, block.id, now, exc)
+        return self._submitted(found, block.id, now, plan)
+
+    def _planning_failed(
+        self, found: Character, block_id: str, now: float, exc: Exception
+    ) -> SubmitResult:
+        """The block is refused: its session raised while planning it
+        (``found.lock`` held)."""
+        target = found.id
+        messages: list[Outgoing] = []
+        # The contract says sessions queue warnings and return None; a
+        # session that raises is answered the same way, and the block is
+        # refused (whatever feedback it made for it is dropped, so no
+        # prediction of a block that will not run reaches the client).
+        text = (
+            str(exc)
+            if isinstance(exc, RealizerError)
+            else f"internal error while planning block {block_id!r}; the block is refused"
+        )
+        if not isinstance(exc, RealizerError):
+            logger.exception("session of character %r failed on block %r", target, block_id)
+        kind = str(getattr(exc, "warning_type", "CANNOT_CREATE_BEHAVIOR"))
+        produced = [
+            fb for fb in self._take(found) if fb.block_id != block_id or fb.kind == "warning"
+        ]
+        messages.extend(self._route(found, self._bounded(found.id, block_id, now, produced)))
+        messages.extend(self._end_lost_block(found, block_id, now))
+        messages.extend(self._warning(target, block_id, now, kind, text))
+        messages.append(BlockEvent(target, block_id, "rejected", now))
+        return SubmitResult(target, block_id, False, tuple(messages))
+
+    def _submitted(self, found: Character, block_id: str, now: float, plan: Any) -> SubmitResult:
+        """What the session said about a block it planned (``plan``) or
+        refused (None), as messages (``found.lock`` held)."""
+        target = found.id
         # Acceptance is this call's own outcome: a plan came back. Feedback
         # of an older block with the same id (its start or end in this very
         # call) says nothing about the new one.
         accepted = plan is not None
         produced = self._take(found)
-        routed = self._route(
+        messages = self._route(
             found,
-            self._bounded(found.id, block.id, now, produced),
-            admit=block.id if accepted else None,
+            self._bounded(found.id, block_id, now, produced),
+            admit=block_id if accepted else None,
             now=now,
             plan_end=getattr(plan, "end", None),
         )
-        messages.extend(routed)
         if not accepted:
-            messages.append(BlockEvent(target, block.id, "rejected", now))
-        return SubmitResult(target, block.id, accepted, tuple(messages))
+            messages.append(BlockEvent(target, block_id, "rejected", now))
+        return SubmitResult(target, block_id, accepted, tuple(messages))
 
     def place_target(
         self, name: str, position: tuple[float, float, float], now: float
@@ -420,7 +468,7 @@ class Stage:
                     character_id, block_id, now, "NO_SUCH_TARGET", f"no character {character_id!r}"
                 )
             )
-        with found.lock:
+        with found.submitting, found.lock:
             return self._interrupt(found, block_id, self._advance(now))
 
     def _interrupt(self, found: Character, block_id: str, now: float) -> tuple[Outgoing, ...]:
@@ -458,9 +506,11 @@ class Stage:
         now = self._advance(now)
         ticks: list[CharacterTick] = []
         for found in list(self.characters.values()):
-            # The clock never waits for a submitter: a character whose block
-            # a planner thread is planning skips this tick (its frame comes
-            # at the next one); every other character ticks on time.
+            # The clock never waits for a submitter: a block is planned with
+            # its character's lock free (Session.plan_bml), so the lock is
+            # held only briefly (a block admitted or committed, an
+            # interrupt); a character caught in that moment skips this tick
+            # (its frame comes at the next one).
             if not found.lock.acquire(blocking=False):
                 self.skipped_ticks += 1
                 continue
@@ -517,14 +567,14 @@ class Stage:
                     or found.open_blocks
                     or found.idle_since is None
                     or now - found.idle_since < idle_seconds
-                    or not found.lock.acquire(blocking=False)  # being planned
+                    or not found.submitting.acquire(blocking=False)  # being planned
                 ):
                     continue
                 try:
                     del self.characters[found.id]
                     freed.append(found.id)
                 finally:
-                    found.lock.release()
+                    found.submitting.release()
         return freed
 
     # -- helpers ----------------------------------------------------------------
