@@ -160,6 +160,9 @@ class LeanViewer(asyncio.Protocol):
             "Sec-WebSocket-Version: 13\r\n\r\n"
         ).encode()
         self.log = log
+        self.lit = False  # whether the last whole frame had FAPs set
+        self.frame_bytes = 0  # bytes of frames and sames, WebSocket headers included
+        self.frame_messages = 0
         self.buffer = bytearray()
         self.opened = False
         self.mesh: asyncio.Future[None] = asyncio.get_running_loop().create_future()
@@ -197,8 +200,14 @@ class LeanViewer(asyncio.Protocol):
             if opcode == 2:
                 message = msgpack.unpackb(payload)
                 if message["type"] == "frame":
-                    lit = bool(message.get("fap", {}).get("ids"))
-                    self.log.receipts.append((message["n"], now, lit))
+                    self.lit = bool(message.get("fap", {}).get("ids"))
+                    self.log.receipts.append((message["n"], now, self.lit))
+                    self.frame_bytes += start + length
+                    self.frame_messages += 1
+                elif message["type"] == "same":  # frame n shows what the last one did
+                    self.log.receipts.append((message["n"], now, self.lit))
+                    self.frame_bytes += start + length
+                    self.frame_messages += 1
                 elif message["type"] == "mesh" and not self.mesh.done():
                     self.mesh.set_result(None)
             elif opcode == 9:  # ping: answer with a masked pong
@@ -385,6 +394,48 @@ def run_load(
         stop_server(process)
 
 
+async def idle_bytes(port: int, vertices: str, seconds: float) -> tuple[float, float]:
+    """(bytes a second, bytes a tick) one viewer of a resting face receives."""
+    loop = asyncio.get_running_loop()
+    log = ViewerLog("resting")
+    _, viewer = await loop.create_connection(
+        lambda: LeanViewer(port, "resting", log, vertices), "127.0.0.1", port
+    )
+    await asyncio.wait_for(viewer.mesh, 30)
+    await asyncio.sleep(0.3)  # past the first, whole frame
+    viewer.frame_bytes = viewer.frame_messages = 0
+    began = loop.time()
+    await asyncio.sleep(seconds)
+    spent = loop.time() - began
+    received, count = viewer.frame_bytes, viewer.frame_messages
+    viewer.close()
+    return received / spent, received / max(count, 1)
+
+
+def run_idle(port: int | None, seconds: float) -> None:
+    """The idle bandwidth of each viewer format: goal a few bytes per unchanged frame."""
+    process = None
+    if port is None:
+        process, port = start_server(FPS, [])
+    try:
+        for name, vertices in VIEWER_FORMATS.items():
+            per_second, per_tick = asyncio.run(idle_bytes(port, vertices, seconds))
+            figure(
+                f"idle face, {name} viewer: bytes per unchanged frame",
+                per_tick,
+                "bytes",
+                goal=IDLE_GOAL_BYTES,
+                note=f"{per_second * 8 / 1e3:.1f} kbit/s with WebSocket headers",
+            )
+    finally:
+        if process is not None:
+            stop_server(process)
+
+
+#: "A few bytes" per unchanged frame, WebSocket header included.
+IDLE_GOAL_BYTES = 24.0
+
+
 async def stalled(port: int, seconds: float) -> tuple[int, int]:
     """(frames the healthy viewer got, frames it should have got)."""
     base = f"ws://127.0.0.1:{port}"
@@ -523,6 +574,7 @@ def run(
             print(f"viewers of {name} vertex frames (and FAPs):")
             chosen = vertex_loads if viewers in (None, "all") else loads
         print_table([run_load(c, v, s, vertices, port) for c, v, s in chosen], name)
+    run_idle(port, 1.0 if quick else 3.0)
     if port is None:
         run_stalled(3.0 if quick else 5.0)
     if long:

@@ -475,13 +475,27 @@ class ViewClient(_Connected):
     def frames(
         self, count: int | None = None, timeout: float | None = None
     ) -> Iterator[dict[str, Any]]:
-        """Frame messages as they arrive (``count`` of them, or forever)."""
+        """Frame messages as they arrive (``count`` of them, or forever).
+
+        A ``same`` message (frame ``n`` shows what the last frame showed) is
+        given as that last frame with its ``n`` and ``t`` moved on and
+        ``"same": True``, so a caller sees one frame per tick either way.
+        """
         seen = 0
+        last: dict[str, Any] | None = None
         while count is None or seen < count:
             message = self.receive(timeout)
-            if message["type"] == "frame":
+            if message["type"] == "mesh":
+                last = None  # a new subscription: its first frame comes whole
+            elif message["type"] == "frame":
+                last = message
                 seen += 1
                 yield message
+            elif message["type"] == "same" and last is not None:
+                fps = float(self.mesh.get("fps", 0.0)) or 1.0
+                moved = last["t"] + (message["n"] - last["n"]) / fps
+                seen += 1
+                yield {**last, "n": message["n"], "t": moved, "same": True}
 
     def vertices(self, frame: dict[str, Any]) -> npt.NDArray[np.float32]:
         """(n, 3) float32 metres of a frame (the neutral pose if it has none)."""

@@ -38,6 +38,7 @@ from realizer.service.messages import (
     FapPayload,
     FrameMessage,
     MeshMessage,
+    SameMessage,
     ViewOptions,
 )
 
@@ -167,6 +168,11 @@ def frame_message(
     if options.arkit and arkit is not None:
         message["arkit"] = arkit
     return message
+
+
+def same_message(number: int) -> bytes:
+    """The packed ``same`` message of frame ``number`` (21 bytes or fewer)."""
+    return pack(SameMessage(type="same", v=PROTOCOL_VERSION, n=number))
 
 
 # -- decoding (clients, tests) ------------------------------------------------

@@ -13,8 +13,9 @@ with :class:`WelcomeMessage`, :class:`FeedbackMessage` and
 
 Viewer endpoint ``/view`` (binary msgpack frames from the server; text JSON
 :class:`SubscribeRequest` from the client): :class:`MeshMessage` first, then
-one :class:`FrameMessage` per clock tick. The layouts of their byte fields
-are in :mod:`realizer.service.codec`.
+one :class:`FrameMessage` per clock tick (with ``same=true``: per tick whose
+content changed, and a :class:`SameMessage` of a few bytes for each tick that
+shows the same). The layouts of their byte fields are in :mod:`realizer.service.codec`.
 """
 
 from __future__ import annotations
@@ -108,6 +109,7 @@ class SubscribeRequest(TypedDict):
     arkit: NotRequired[bool]
     audio: NotRequired[Literal["pcm16", "none"]]
     scene: NotRequired[bool]
+    same: NotRequired[bool]
 
 
 # -- viewer, server to client (msgpack) ---------------------------------------
@@ -193,6 +195,15 @@ class AudioCutMessage(TypedDict):
     v: int
     character: str
     t: float
+
+
+class SameMessage(TypedDict):
+    """Frame ``n`` shows exactly what the last frame sent to this viewer
+    showed: nothing to say, so nearly nothing is sent (protocols/viewer.md)."""
+
+    type: Literal["same"]
+    v: int
+    n: int
 
 
 # -- reading client messages ---------------------------------------------------
@@ -327,7 +338,7 @@ def read_subscribe_message(text: str) -> SubscribeRequest:
         if not isinstance(data["fap"], bool):
             raise BadMessage("fap must be true or false")
         request["fap"] = data["fap"]
-    for name in ("coded", "arkit", "scene"):
+    for name in ("coded", "arkit", "scene", "same"):
         if name in data:
             if not isinstance(data[name], bool):
                 raise BadMessage(f"{name} must be true or false")

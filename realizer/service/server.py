@@ -234,6 +234,13 @@ class Viewer:
     scene: bool = False
     #: the scene message queued and not yet sent (a newer one replaces it)
     scene_queued: bytes | None = None
+    #: ``same=true``: a tick that shows what the last frame showed may be
+    #: sent as a ``same`` message (protocols/viewer.md)
+    same: bool = False
+    #: the content version (FrameEncoder.observe) of the last frame offered;
+    #: -1: none yet for this subscription
+    version: int = -1
+    latest_same: bool = False  # the mailbox holds a `same`, not a frame
 
     def offer_audio(self, message: bytes, backlog: int) -> None:
         """Queue an audio chunk (never replaced like frames: audio must be whole);
@@ -274,7 +281,17 @@ class Viewer:
         if self.latest is not None:
             self.replaced += 1
         self.latest = frame
+        self.latest_same = False
         self.wake.set()
+
+    def offer_same(self, same: bytes, write_limit: int = 0) -> None:
+        """Offer a ``same`` message, unless a frame still waits in the mailbox
+        (that frame is newer content than what the viewer has: it must not be
+        replaced, and it says more than ``same``)."""
+        if self.latest is not None and not self.latest_same:
+            return
+        self.offer(same, write_limit)
+        self.latest_same = self.latest is not None
 
 
 class RealizerService:
@@ -463,18 +480,39 @@ class RealizerService:
 
     def _deliver_frame(self, number: int, character_tick: CharacterTick) -> None:
         """Hook: encode one character's frame once per format and offer it,
-        with its audio, to its viewers (a cluster worker publishes it instead)."""
+        with its audio, to its viewers (a cluster worker publishes it instead).
+
+        Nothing to say, nearly nothing sent: a viewer that asked for ``same``
+        messages and already has this tick's content (its FAPs, so its
+        vertices and weights) gets a ``same`` of a few bytes; only the others
+        get the frame, which is encoded only if someone needs it. The coded
+        FAP stream is one per character, so when it codes a frame (its
+        prediction moves on) every coded viewer gets that frame.
+        """
         viewers = self.viewers.get(character_tick.character)
         if not viewers:
             return
         self._send_audio(character_tick.character, character_tick.time, viewers)
-        encoded = self._encoder(character_tick.character).encode(
-            number, character_tick.time, character_tick.frame, (v.options for v in viewers)
-        )
-        for viewer in viewers:
-            data = encoded.get(viewer.options)  # none for ARKit viewers until its fit is set up
-            if data is not None:
-                viewer.offer(data, WRITE_LIMIT)
+        encoder = self._encoder(character_tick.character)
+        version = encoder.observe(character_tick.frame)
+        stale = [v for v in viewers if not v.same or v.version != version]
+        if any(v.options.coded for v in stale):
+            stale = [v for v in viewers if v.options.coded or not v.same or v.version != version]
+        if len(stale) < len(viewers):
+            same = codec.same_message(number)
+            chosen = set(stale)
+            for viewer in viewers:
+                if viewer not in chosen:
+                    viewer.offer_same(same, WRITE_LIMIT)
+        if stale:
+            encoded = encoder.encode(
+                number, character_tick.time, character_tick.frame, (v.options for v in stale)
+            )
+            for viewer in stale:
+                data = encoded.get(viewer.options)  # none for ARKit viewers until its fit is set up
+                if data is not None:
+                    viewer.offer(data, WRITE_LIMIT)
+                    viewer.version = version
 
     def _send_audio(self, character: str, now: float, viewers: Iterable[Viewer]) -> None:
         """The character's speech audio due at ``now`` to the viewers that want it."""
@@ -796,6 +834,7 @@ class RealizerService:
         viewer.audio = audio == "pcm16"
         viewer.wants_model = query.get("model", "false").lower() in ("1", "true", "yes")
         viewer.scene = query.get("scene", "false").lower() in ("1", "true", "yes")
+        viewer.same = query.get("same", "false").lower() in ("1", "true", "yes")
         viewer.control.extend(await self._subscription_start(character, viewer))
         self._offer_scene(viewer, self._scene_bytes())
         self.viewers.setdefault(character, set()).add(viewer)
@@ -860,10 +899,13 @@ class RealizerService:
         viewer.character, viewer.options = character, options
         if "audio" in request:
             viewer.audio = request["audio"] == "pcm16"
+        if "same" in request:
+            viewer.same = request["same"]
         viewer.audio_queue.clear()  # audio of the old subscription must not follow
         self.viewers.setdefault(character, set()).add(viewer)
         self._viewers_changed(character)
         viewer.latest = None  # a frame of the old subscription must not follow the new mesh
+        viewer.version = -1  # the new subscription's first frame is sent whole
         mesh, *model = await self._subscription_start(character, viewer)
         self._control(viewer, mesh)
         viewer.control.extend(model)

@@ -780,6 +780,10 @@ class FrameEncoder:
         self._coded_number: int | None = None  # the frame the coder last coded
         self._arkit: Callable[[npt.NDArray[np.float64]], bytes] | None = None
         self.deformations = 0  # how many times the face was deformed (for tests)
+        # The content of the last frame observed and its version, which
+        # changes whenever the content does (see observe).
+        self._shown: tuple[npt.NDArray[np.bool_], npt.NDArray[np.float64]] | None = None
+        self.version = 0
 
     @property
     def model_bytes(self) -> bytes:
@@ -792,6 +796,20 @@ class FrameEncoder:
             fields = model_message_fields(gpu_model_for(self.face))
             self._model_bytes = codec.pack(codec.model_message(self.character_id, fields))
         return self._model_bytes
+
+    def observe(self, frame: FapFrame) -> int:
+        """The version of ``frame``'s content: the previous frame's when it shows
+        exactly the same FAPs (set and values), else a new one. A viewer that
+        already has this version is sent a ``same`` message instead."""
+        mask = np.asarray(frame.mask, dtype=bool)
+        values = np.where(mask, np.asarray(frame.values, dtype=np.float64), 0.0)
+        shown = self._shown
+        if shown is None or not (
+            np.array_equal(mask, shown[0]) and np.array_equal(values, shown[1])
+        ):
+            self._shown = (mask, values)
+            self.version += 1
+        return self.version
 
     def encode(
         self, number: int, time: float, frame: FapFrame, wanted: Iterable[ViewOptions]

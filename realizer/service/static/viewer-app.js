@@ -271,6 +271,8 @@ function onViewerMessage(c, m) {
     buildMesh(c);
   } else if (m.type === "frame") {
     onFrame(c, m);
+  } else if (m.type === "same") {
+    onSame(c, m);
   } else if (m.type === "audio") {
     state.audioChunks = (state.audioChunks || 0) + 1;
     if (state.audio) state.audio.push(c.id, m, serverNow());
@@ -313,6 +315,17 @@ function onFrame(c, m) {
   state.frames++;
   state.dirty = true;
   state.lastFrame = { n: m.n, t: m.t, faps: count, at: performance.now(), character: c.id };
+}
+
+// Frame n shows what the last frame showed (protocols/viewer.md): nothing to apply.
+function onSame(c, m) {
+  c.frames++;
+  state.frames++;
+  const last = state.lastFrame;
+  if (last && last.character === c.id) {
+    state.lastFrame = { ...last, n: m.n, t: last.t + (m.n - last.n) / (state.fps || 60),
+                        at: performance.now() };
+  }
 }
 
 function watchCharacter(id) {
