@@ -97,6 +97,12 @@ def run(args: argparse.Namespace) -> int:
                         {"type": kind, "n": message.get("n"), "t": message.get("t"), "bytes": size}
                     )
                 )
+                if kind == "same":  # frame n shows what the last frame showed
+                    if suffix == ".fap" and frames:
+                        frames.append(frames[-1])
+                    elif suffix == ".csv" and rows:
+                        rows.append((rows[-1][0] + 1.0 / fps, rows[-1][1]))
+                    continue
                 if kind != "frame":
                     continue
                 if suffix == ".fap":
