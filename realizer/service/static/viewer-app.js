@@ -262,7 +262,7 @@ function serverNow() {
 
 function onViewerMessage(c, m) {
   if (m.type === "mesh") {
-    c.mesh = m; c.model = null;
+    c.mesh = m; c.model = null; c.lastDecoded = null;
     c.decoder = new FapStreamDecoder(m.fapSteps ? new Uint16Array(m.fapSteps.slice().buffer) : null, m.fapGroups);
     buildMesh(c);
     state.meshLoaded = true; state.fps = m.fps;
@@ -307,7 +307,8 @@ function onFrame(c, m) {
   if (faps) {
     applyFaps(c, faps);
     if (state.decoded.length >= 600) state.decoded.shift();
-    state.decoded.push({ character: c.id, n: m.n, faps: Array.from(faps) });
+    c.lastDecoded = Array.from(faps);
+    state.decoded.push({ character: c.id, n: m.n, faps: c.lastDecoded });
   } else {
     applyDelta(c, m);
   }
@@ -321,6 +322,14 @@ function onFrame(c, m) {
 function onSame(c, m) {
   c.frames++;
   state.frames++;
+  if (c.arkit && state.avatar && c === state.characters.values().next().value) {
+    state.avatar.apply(c.arkit.weights);  // the same weights and pose, one frame more
+    state.avatar.pose(c.arkit.pose);
+  }
+  if (c.lastDecoded) {  // frame n decodes to what the last frame decoded to
+    if (state.decoded.length >= 600) state.decoded.shift();
+    state.decoded.push({ character: c.id, n: m.n, faps: c.lastDecoded });
+  }
   const last = state.lastFrame;
   if (last && last.character === c.id) {
     state.lastFrame = { ...last, n: m.n, t: last.t + (m.n - last.n) / (state.fps || 60),
