@@ -492,10 +492,8 @@ class ViewClient(_Connected):
                 seen += 1
                 yield message
             elif message["type"] == "same" and last is not None:
-                fps = float(self.mesh.get("fps", 0.0)) or 1.0
-                moved = last["t"] + (message["n"] - last["n"]) / fps
                 seen += 1
-                yield {**last, "n": message["n"], "t": moved, "same": True}
+                yield _same_as(last, message, self.mesh)
 
     def vertices(self, frame: dict[str, Any]) -> npt.NDArray[np.float32]:
         """(n, 3) float32 metres of a frame (the neutral pose if it has none)."""
@@ -691,12 +689,21 @@ class AsyncViewClient(_AsyncConnected):
     async def frames(
         self, count: int | None = None, timeout: float | None = None
     ) -> AsyncIterator[dict[str, Any]]:
+        """Frames as they arrive; a ``same`` is the last frame again (see the
+        blocking client's :meth:`frames`)."""
         seen = 0
+        last: dict[str, Any] | None = None
         while count is None or seen < count:
             message = await self.receive(timeout)
-            if message["type"] == "frame":
+            if message["type"] == "mesh":
+                last = None
+            elif message["type"] == "frame":
+                last = message
                 seen += 1
                 yield message
+            elif message["type"] == "same" and last is not None:
+                seen += 1
+                yield _same_as(last, message, self.mesh)
 
     def vertices(self, frame: dict[str, Any]) -> npt.NDArray[np.float32]:
         return codec.decode_vertices(frame, self.mesh)
@@ -704,3 +711,10 @@ class AsyncViewClient(_AsyncConnected):
     @staticmethod
     def faps(frame: dict[str, Any]) -> dict[int, float]:
         return codec.decode_faps(frame["fap"]) if "fap" in frame else {}
+
+
+def _same_as(last: dict[str, Any], same: dict[str, Any], mesh: dict[str, Any]) -> dict[str, Any]:
+    """The frame a ``same`` message stands for: ``last`` with ``n`` and ``t`` moved on."""
+    fps = float(mesh.get("fps", 0.0)) or 1.0
+    moved = last["t"] + (same["n"] - last["n"]) / fps
+    return {**last, "n": same["n"], "t": moved, "same": True}
