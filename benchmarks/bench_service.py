@@ -22,6 +22,10 @@ for each load (characters x viewers) measures
 Goal: p99 latency under one frame period at 60 fps with 10
 characters and 100 viewers; no drift over 10 minutes (``--long``).
 
+The server runs without idle motion (``--no-idle``; start one that way for
+``--port``), so a face moves only for a probe; viewers ask for ``same``
+messages (``same=true``), as the project's clients do.
+
 The viewers are lean raw-protocol clients (``LeanViewer``) in one Python
 process on the same machine; their CPU use still competes with the
 server's, so the figures are an upper bound of what a remote viewer would
@@ -104,8 +108,11 @@ def _drain(stream: IO[bytes]) -> None:
 
 
 def start_server(fps: float, extra: list[str]) -> tuple[subprocess.Popen[bytes], int]:
+    # No idle motion: a face moves only for a probe block, so the first frame
+    # with FAPs set is the one that shows it, and a resting face is unchanged.
+    command = [sys.executable, "-m", "realizer", "serve", "--port", "0", "--fps", str(fps)]
     process = subprocess.Popen(
-        [sys.executable, "-m", "realizer", "serve", "--port", "0", "--fps", str(fps), *extra],
+        [*command, "--no-idle", *extra],
         cwd=ROOT,
         stderr=subprocess.PIPE,
         stdout=subprocess.DEVNULL,
@@ -154,7 +161,7 @@ class LeanViewer(asyncio.Protocol):
 
     def __init__(self, port: int, character: str, log: ViewerLog, vertices: str) -> None:
         self.request = (
-            f"GET /view?character={character}&fap=true&vertices={vertices} HTTP/1.1\r\n"
+            f"GET /view?character={character}&fap=true&vertices={vertices}&same=true HTTP/1.1\r\n"
             f"Host: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
             f"Sec-WebSocket-Key: {base64.b64encode(os.urandom(16)).decode()}\r\n"
             "Sec-WebSocket-Version: 13\r\n\r\n"

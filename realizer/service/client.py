@@ -444,11 +444,13 @@ class ViewClient(_Connected):
         token: str | None = None,
         coded: bool = False,
         arkit: bool = False,
+        same: bool = True,
     ) -> None:
         from realizer.face.fapcoding import FapStreamDecoder
 
         self._decoder = FapStreamDecoder()
-        params = _view_params(character, fap, vertices, token)
+        self._decoded: dict[int, float] | None = None  # the last frame's decoded FAPs
+        params = _view_params(character, fap, vertices, token, same)
         params.update(coded="true" if coded else None, arkit="true" if arkit else None)
         self.connection: ClientConnection = _open(endpoint_url(url, "/view", params))
         self.mesh = self.receive(OPEN_TIMEOUT)
@@ -510,11 +512,15 @@ class ViewClient(_Connected):
         be decoded yet (frames arrive in order, so call this for every frame:
         it decodes from the first intra frame on)."""
         if "coded" in frame:
+            if frame.get("same"):  # a `same`: what the last frame decoded to
+                return self._decoded
             decoded = self._decoder.decode(frame["coded"], frame["n"], frame.get("codedRef"))
             if decoded is None:
+                self._decoded = None
                 return None
             values, mask = decoded
-            return {int(i) + 1: float(values[i]) for i in np.flatnonzero(mask)}
+            self._decoded = {int(i) + 1: float(values[i]) for i in np.flatnonzero(mask)}
+            return self._decoded
         return self.faps(frame)
 
     @staticmethod
@@ -529,13 +535,14 @@ class ViewClient(_Connected):
 
 
 def _view_params(
-    character: str | None, fap: bool, vertices: str, token: str | None
+    character: str | None, fap: bool, vertices: str, token: str | None, same: bool
 ) -> dict[str, str | None]:
     return {
         "character": character,
         "fap": "true" if fap else "false",
         "vertices": vertices,
         "token": token,
+        "same": "true" if same else "false",
     }
 
 
@@ -667,8 +674,9 @@ class AsyncViewClient(_AsyncConnected):
         fap: bool = True,
         vertices: str = "none",
         token: str | None = None,
+        same: bool = True,
     ) -> None:
-        self._url = endpoint_url(url, "/view", _view_params(character, fap, vertices, token))
+        self._url = endpoint_url(url, "/view", _view_params(character, fap, vertices, token, same))
         self.mesh: dict[str, Any] = {}
 
     async def open(self) -> None:

@@ -22,6 +22,27 @@ const SMILE = readFileSync(new URL("../../examples/bml/01_smile.xml", import.met
 const LONG = '<bml xmlns="http://www.bml-initiative.org/bml/bml-1.0" id="long">'
   + '<head id="nod" lexeme="NOD" start="0" end="30"/></bml>';
 
+test("a resting face comes as same messages, which frames() gives as the last frame again", async () => {
+  const view = await ViewClient.connect(URL_, { character: "Rest", WebSocket });
+  const old = await ViewClient.connect(URL_, { character: "Rest", same: false, WebSocket });
+  try {
+    const raw = [];
+    for (let i = 0; i < 10; i++) raw.push(await view.receive(30000 * UNIT));
+    const kinds = JSON.stringify(raw.map((m) => m.type));
+    assert.equal(raw[0].type, "frame", kinds);  // the first whole, then (nothing moves) sames
+    assert.ok(raw.slice(1).every((m) => m.type === "same" && m.v === 1), kinds);
+    const frames = [];
+    for await (const frame of view.frames(5, 30000 * UNIT)) frames.push(frame);
+    assert.ok(frames.every((f) => f.type === "frame" && f.same === true));
+    assert.ok(frames.slice(1).every((f, i) => f.n > frames[i].n && f.t > frames[i].t));
+    // a client that does not ask for same gets whole frames
+    for (let i = 0; i < 5; i++) assert.equal((await old.receive(30000 * UNIT)).type, "frame");
+  } finally {
+    view.close();
+    old.close();
+  }
+});
+
 test("a block runs to done with parsed feedback, and the viewer sees the face move", async () => {
   const view = await ViewClient.connect(URL_, { character: "Eve", vertices: "int16", WebSocket });
   const client = await SubmitClient.connect(URL_, { character: "Eve", WebSocket });

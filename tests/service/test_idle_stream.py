@@ -61,7 +61,9 @@ def test_a_changed_face_is_sent_whole_and_a_resubscribed_viewer_gets_a_whole_fra
         async with running_service(FakeSession, ASSETS) as service:
             base = f"ws://127.0.0.1:{service.port}"
             async with (
-                connect(f"{base}/view?character=Ann&vertices=int16&same=true", max_size=None) as viewer,
+                connect(
+                    f"{base}/view?character=Ann&vertices=int16&same=true", max_size=None
+                ) as viewer,
                 connect(f"{base}/bml") as submitter,
             ):
                 before = [codec.unpack(d) for d in await messages(viewer, 5)]
@@ -132,3 +134,48 @@ def test_a_subscribe_message_turns_same_on_and_off() -> None:
     on, off = asyncio.run(scenario())
     assert on.count("same") >= 10  # after the new mesh and its first whole frame
     assert off[-10:] == ["frame"] * 10
+
+
+def test_coded_viewers_with_same_decode_every_frame_when_another_coded_viewer_joins() -> None:
+    """The coded stream is one per character: a `same` never skips a coded
+    frame a coded viewer needs to decode the next (a joining viewer's intra
+    frame goes to every coded viewer)."""
+    from realizer.face.fapcoding import FapStreamDecoder
+
+    async def scenario() -> list[tuple[str, bool | None]]:
+        async with running_service(FakeSession, ASSETS) as service:
+            base = f"ws://127.0.0.1:{service.port}"
+            view = f"{base}/view?character=Cod&coded=true&same=true"
+            decoder = FapStreamDecoder()
+            seen: list[tuple[str, bool | None]] = []  # (type, decoded) of viewer A
+            async with (
+                connect(view, max_size=None) as first,
+                connect(f"{base}/bml") as submitter,
+            ):
+
+                async def read(count: int) -> None:
+                    for _ in range(count):
+                        message = codec.unpack(await asyncio.wait_for(first.recv(), 5 * UNIT))
+                        if message["type"] == "frame":
+                            ok = decoder.decode(
+                                message["coded"], message["n"], message.get("codedRef")
+                            )
+                            seen.append(("frame", ok is not None))
+                        elif message["type"] == "same":
+                            seen.append(("same", None))
+
+                await read(10)  # the mesh, an intra frame, then sames
+                async with connect(view, max_size=None) as second:
+                    await second.recv()  # its mesh
+                    await read(5)
+                    await submitter.send(
+                        json.dumps({"type": "bml", "bml": smile_bml("c2"), "character": "Cod"})
+                    )
+                    await read(40)
+            return seen
+
+    seen = asyncio.run(scenario())
+    frames = [ok for kind, ok in seen if kind == "frame"]
+    assert any(kind == "same" for kind, _ in seen)
+    # the first intra frame, the joining viewer's intra frame, the smile: all decoded
+    assert len(frames) >= 3 and all(frames), seen

@@ -64,7 +64,9 @@ def test_the_javascript_client_against_a_real_server(websocket: str) -> None:
     if flags is None:
         pytest.skip(f"this node has no {websocket} WebSocket")
     guarded = ("--submit-token", "s3cret", "--view-token", "look", "--limit", "submitters=1")
-    with serve_process() as open_server, serve_process(*guarded) as guarded_server:
+    # no idle motion: a resting face is unchanged (the `same` messages), and
+    # only blocks move it
+    with serve_process("--no-idle") as open_server, serve_process(*guarded) as guarded_server:
         env = {
             **os.environ,
             "NODE_PATH": NODE_PATH,

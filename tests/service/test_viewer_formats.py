@@ -62,7 +62,8 @@ def test_coded_and_arkit_messages_match_the_protocol_schemas() -> None:
 
     with service_in_thread(real_sessions(), real_assets(), fps=25.0) as service:
         url = f"ws://127.0.0.1:{service.port}"
-        with ViewClient(url, character="Sch", coded=True, arkit=True) as view:
+        # every tick a whole frame (same=False), so predicted coded frames come
+        with ViewClient(url, character="Sch", coded=True, arkit=True, same=False) as view:
             check("mesh", as_json(view.mesh))
             frames = list(view.frames(30, timeout=10 * UNIT))
             view.subscribe(coded=False, arkit=True)

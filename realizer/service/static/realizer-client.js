@@ -328,10 +328,13 @@ export class SubmitClient {
 // -- the viewer endpoint ------------------------------------------------------------------
 
 export class ViewClient {
-  // Connect to /view and read the mesh.
+  // Connect to /view and read the mesh. same (default true): a tick that shows what
+  // the last frame showed comes as a few-byte `same` message (frames() repeats the
+  // last frame for it; receive() gives it as it is).
   static async connect(url, { character, fap = true, vertices = "none", model, coded, arkit,
-    scene, token, WebSocket } = {}) {
-    const params = { character, fap: fap ? "true" : "false", vertices, token };
+    scene, same = true, token, WebSocket } = {}) {
+    const params = { character, fap: fap ? "true" : "false", vertices, token,
+                     same: same ? "true" : "false" };
     if (model !== undefined) params.model = model ? "true" : "false";
     if (scene !== undefined) params.scene = scene ? "true" : "false";
     if (coded !== undefined) params.coded = coded ? "true" : "false";
@@ -358,11 +361,19 @@ export class ViewClient {
     if (message.type === "model") this.model = message;
     return message;
   }
-  // for await (const frame of view.frames(60)) ...
+  // for await (const frame of view.frames(60)) ... One per tick: a `same` message
+  // is given as the last frame with its n and t moved on and same: true.
   async *frames(count, timeoutMs) {
+    let last = null;
     for (let seen = 0; count === undefined || seen < count;) {
       const message = await this.receive(timeoutMs);
-      if (message.type === "frame") { seen++; yield message; }
+      if (message.type === "mesh") last = null;  // a new subscription: a whole frame first
+      else if (message.type === "frame") { last = message; seen++; yield message; }
+      else if (message.type === "same" && last) {
+        const t = last.t + (message.n - last.n) / (this.mesh.fps || 1);
+        seen++;
+        yield { ...last, n: message.n, t, same: true };
+      }
     }
   }
   subscribe(changes) { this.connection.send(JSON.stringify({ type: "subscribe", ...changes })); }
