@@ -450,6 +450,7 @@ class ViewClient(_Connected):
 
         self._decoder = FapStreamDecoder()
         self._decoded: dict[int, float] | None = None  # the last frame's decoded FAPs
+        self._last_frame: dict[str, Any] | None = None  # the last frame received
         params = _view_params(character, fap, vertices, token, same)
         params.update(coded="true" if coded else None, arkit="true" if arkit else None)
         self.connection: ClientConnection = _open(endpoint_url(url, "/view", params))
@@ -468,6 +469,9 @@ class ViewClient(_Connected):
 
             self.mesh = message
             self._decoder = FapStreamDecoder()  # a new subscription: a new coded stream
+            self._last_frame = None  # its first frame comes whole
+        elif message["type"] == "frame":
+            self._last_frame = message  # what a `same` repeats
         return message
 
     def subscribe(self, **changes: Any) -> None:
@@ -484,18 +488,14 @@ class ViewClient(_Connected):
         ``"same": True``, so a caller sees one frame per tick either way.
         """
         seen = 0
-        last: dict[str, Any] | None = None
         while count is None or seen < count:
             message = self.receive(timeout)
-            if message["type"] == "mesh":
-                last = None  # a new subscription: its first frame comes whole
-            elif message["type"] == "frame":
-                last = message
+            if message["type"] == "frame":
                 seen += 1
                 yield message
-            elif message["type"] == "same" and last is not None:
+            elif message["type"] == "same" and self._last_frame is not None:
                 seen += 1
-                yield _same_as(last, message, self.mesh)
+                yield _same_as(self._last_frame, message, self.mesh)
 
     def vertices(self, frame: dict[str, Any]) -> npt.NDArray[np.float32]:
         """(n, 3) float32 metres of a frame (the neutral pose if it has none)."""
@@ -678,6 +678,7 @@ class AsyncViewClient(_AsyncConnected):
     ) -> None:
         self._url = endpoint_url(url, "/view", _view_params(character, fap, vertices, token, same))
         self.mesh: dict[str, Any] = {}
+        self._last_frame: dict[str, Any] | None = None
 
     async def open(self) -> None:
         self.connection = await _async_open(self._url)
@@ -689,6 +690,9 @@ class AsyncViewClient(_AsyncConnected):
         message = _read_view(await self._recv(timeout))
         if message["type"] == "mesh":
             self.mesh = message
+            self._last_frame = None  # a new subscription: its first frame comes whole
+        elif message["type"] == "frame":
+            self._last_frame = message  # what a `same` repeats
         return message
 
     async def subscribe(self, **changes: Any) -> None:
@@ -700,18 +704,14 @@ class AsyncViewClient(_AsyncConnected):
         """Frames as they arrive; a ``same`` is the last frame again (see the
         blocking client's :meth:`frames`)."""
         seen = 0
-        last: dict[str, Any] | None = None
         while count is None or seen < count:
             message = await self.receive(timeout)
-            if message["type"] == "mesh":
-                last = None
-            elif message["type"] == "frame":
-                last = message
+            if message["type"] == "frame":
                 seen += 1
                 yield message
-            elif message["type"] == "same" and last is not None:
+            elif message["type"] == "same" and self._last_frame is not None:
                 seen += 1
-                yield _same_as(last, message, self.mesh)
+                yield _same_as(self._last_frame, message, self.mesh)
 
     def vertices(self, frame: dict[str, Any]) -> npt.NDArray[np.float32]:
         return codec.decode_vertices(frame, self.mesh)

@@ -179,3 +179,19 @@ def test_coded_viewers_with_same_decode_every_frame_when_another_coded_viewer_jo
     assert any(kind == "same" for kind, _ in seen)
     # the first intra frame, the joining viewer's intra frame, the smile: all decoded
     assert len(frames) >= 3 and all(frames), seen
+
+
+def test_the_python_client_repeats_the_last_frame_for_a_same_even_after_receive() -> None:
+    from realizer.client import ViewClient
+    from tests.service.browser import service_in_thread
+
+    with (
+        service_in_thread(FakeSession, ASSETS, fps=60.0) as service,
+        ViewClient(f"ws://127.0.0.1:{service.port}", character="py") as view,
+    ):
+        first = view.receive(5 * UNIT)  # read raw: the whole first frame
+        frames = list(view.frames(5, timeout=5 * UNIT))
+    assert first["type"] == "frame"
+    assert all(f["same"] and f["fap"] == first["fap"] for f in frames)
+    numbers = [first["n"], *(f["n"] for f in frames)]
+    assert numbers == sorted(numbers) and len(set(numbers)) == 6

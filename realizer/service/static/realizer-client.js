@@ -348,7 +348,9 @@ export class ViewClient {
     }
     return client;
   }
-  constructor(connection) { this.connection = connection; this.mesh = null; this.model = null; }
+  constructor(connection) {
+    this.connection = connection; this.mesh = null; this.model = null; this.lastFrame = null;
+  }
 
   async receive(timeoutMs) {
     const data = await this.connection.next(timeoutMs);
@@ -357,18 +359,18 @@ export class ViewClient {
     if (message === null || typeof message !== "object" || !message.type) {
       throw new ProtocolError("a viewer message without a type");
     }
-    if (message.type === "mesh") this.mesh = message;
+    if (message.type === "mesh") { this.mesh = message; this.lastFrame = null; }
     if (message.type === "model") this.model = message;
+    if (message.type === "frame") this.lastFrame = message;  // what a `same` repeats
     return message;
   }
   // for await (const frame of view.frames(60)) ... One per tick: a `same` message
   // is given as the last frame with its n and t moved on and same: true.
   async *frames(count, timeoutMs) {
-    let last = null;
     for (let seen = 0; count === undefined || seen < count;) {
       const message = await this.receive(timeoutMs);
-      if (message.type === "mesh") last = null;  // a new subscription: a whole frame first
-      else if (message.type === "frame") { last = message; seen++; yield message; }
+      const last = this.lastFrame;  // null after a mesh: a new subscription's first comes whole
+      if (message.type === "frame") { seen++; yield message; }
       else if (message.type === "same" && last) {
         const t = last.t + (message.n - last.n) / (this.mesh.fps || 1);
         seen++;
