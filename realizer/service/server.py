@@ -67,6 +67,7 @@ from realizer.service.messages import (
     warning_feedback_xml,
 )
 from realizer.service.stage import (
+    CODED_INTRA_SECONDS,
     BlockEvent,
     CharacterTick,
     Deformer,
@@ -487,7 +488,8 @@ class RealizerService:
         vertices and weights) gets a ``same`` of a few bytes; only the others
         get the frame, which is encoded only if someone needs it. The coded
         FAP stream is one per character, so when it codes a frame (its
-        prediction moves on) every coded viewer gets that frame.
+        prediction moves on) every coded viewer gets that frame; and it codes
+        one at least once a second (after a rest, an intra frame).
         """
         viewers = self.viewers.get(character_tick.character)
         if not viewers:
@@ -496,7 +498,10 @@ class RealizerService:
         encoder = self._encoder(character_tick.character)
         version = encoder.observe(character_tick.frame)
         stale = [v for v in viewers if not v.same or v.version != version]
-        if any(v.options.coded for v in stale):
+        # The coded stream sends an intra frame once a second even while the
+        # face rests (a viewer that lost a frame decodes again from it).
+        intra_due = number % max(1, round(self.config.fps * CODED_INTRA_SECONDS)) == 0
+        if intra_due or any(v.options.coded for v in stale):
             stale = [v for v in viewers if v.options.coded or not v.same or v.version != version]
         if len(stale) < len(viewers):
             same = codec.same_message(number)
