@@ -329,6 +329,21 @@ def _scipy() -> Any:
     return scipy
 
 
+def warm_up() -> bool:
+    """Import the sparse path's scipy now, if it is installed; False if it is not.
+
+    A process that serves calls this at start: imported lazily, scipy would
+    be imported by the first big block, on a planner thread, holding the
+    interpreter lock for a few hundred milliseconds (seen: a 678 ms stall of
+    a worker's frame clock), a frame gap for every viewer.
+    """
+    try:
+        _scipy()
+    except ImportError:
+        return False
+    return True
+
+
 def solve_sparse(problem: Problem) -> dict[Key, float]:
     """:func:`solve` on sparse matrices, vectorised: the path for big blocks."""
     return dict(zip(problem.keys, _sparse_times(problem), strict=True))

@@ -6,7 +6,9 @@ how far its audio has been sent, and turns the session's audio
 (protocols/viewer.md). Each tick sends the samples from where the last
 chunk ended up to :data:`AUDIO_LEAD` seconds ahead of the clock, so a viewer
 holds a little audio to schedule ahead (Web Audio plays it at the chunk's
-time ``t``); chunks join sample for sample. Silence sends nothing.
+time ``t``); chunks join sample for sample. Silence sends nothing, and a stretch that
+was silent when looked at is only taken as sent up to the clock, not up to
+the lead: speech a new block adds there is still sent whole.
 
 When a block is interrupted, audio already sent beyond that instant must not
 play: the stream sends ``audioCut`` with the instant, and resends from then
@@ -70,23 +72,29 @@ class AudioStream:
         if last <= first:
             return out
         chunk = audio(first / self.rate, last / self.rate, self.rate)
+        if chunk is None or not len(chunk.samples):
+            # Nothing sounds there *yet*: a block committed before the next
+            # tick may start speaking inside this window, so only the past is
+            # done with. Advancing to the lead would cut the first lead's
+            # worth of a new speech (up to AUDIO_LEAD seconds of it).
+            self.sent_until = max(start, now)
+            return out
         self.sent_until = last / self.rate
-        if chunk is not None and len(chunk.samples):
-            out.append(
-                codec.pack(
-                    {
-                        "type": "audio",
-                        "v": PROTOCOL_VERSION,
-                        "character": self.character,
-                        "t": chunk.start,
-                        "rate": self.rate,
-                        "channels": 1,
-                        "format": "pcm16",
-                        "count": len(chunk.samples),
-                        "samples": chunk.samples.astype("<i2").tobytes(),
-                    }
-                )
+        out.append(
+            codec.pack(
+                {
+                    "type": "audio",
+                    "v": PROTOCOL_VERSION,
+                    "character": self.character,
+                    "t": chunk.start,
+                    "rate": self.rate,
+                    "channels": 1,
+                    "format": "pcm16",
+                    "count": len(chunk.samples),
+                    "samples": chunk.samples.astype("<i2").tobytes(),
+                }
             )
+        )
         return out
 
 

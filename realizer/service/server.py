@@ -50,6 +50,7 @@ from websockets.protocol import State
 
 from realizer import __version__
 from realizer.face.model import Face
+from realizer.scheduler import solver
 from realizer.service import codec
 from realizer.service.audio import AUDIO_VALUES, AudioStream, backlog_limit
 from realizer.service.errors import BadMessage, CloseCode, ConfigError, PeerError
@@ -333,6 +334,10 @@ class RealizerService:
         self._planner = ThreadPoolExecutor(
             max_workers=config.planner_threads, thread_name_prefix="realizer-planner"
         )
+        # The sparse solver's scipy is imported lazily; import it here, before
+        # any frame, so a first big block does not import it on a planner
+        # thread while the clock runs (the light install has no scipy: fine).
+        solver.warm_up()
 
     # -- life cycle ---------------------------------------------------------------
 
