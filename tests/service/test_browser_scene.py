@@ -43,9 +43,11 @@ def test_two_characters_are_drawn_at_their_scene_places_looking_at_each_other() 
         try:
             page = browser.new_page()
             page.goto(f"http://127.0.0.1:{service.port}/?character=Ann,Bob")
+            # viewer.js's placeholder (no characters) is window.realizerViewer until the
+            # viewer's module has loaded: read it with ?. (a TypeError fails the wait)
             page.wait_for_function(
                 "(() => { const s = window.realizerViewer;"
-                " return s.characters.size === 2 && s.scene && s.scene.targets.Ann"
+                " return s.characters?.size === 2 && s.scene && s.scene.targets.Ann"
                 " && s.scene.targets.Bob"
                 " && [...s.characters.values()].every(c => c.frames > 3 && c.group); })()",
                 timeout=timeout,

@@ -262,7 +262,7 @@ function serverNow() {
 
 function onViewerMessage(c, m) {
   if (m.type === "mesh") {
-    c.mesh = m; c.model = null; c.lastDecoded = null;
+    c.mesh = m; c.model = null; c.lastDecoded = null; c.lastNT = null;
     c.decoder = new FapStreamDecoder(m.fapSteps ? new Uint16Array(m.fapSteps.slice().buffer) : null, m.fapGroups);
     buildMesh(c);
     state.meshLoaded = true; state.fps = m.fps;
@@ -287,6 +287,7 @@ function onViewerMessage(c, m) {
 
 function onFrame(c, m) {
   noteFrameArrival(m.t);
+  c.lastNT = { n: m.n, t: m.t };
   let faps = null, count = 0;
   if (m.coded) {
     faps = c.decoder.decode(m.n, m.coded, m.codedRef ?? null);  // null until the next intra frame
@@ -322,6 +323,11 @@ function onFrame(c, m) {
 function onSame(c, m) {
   c.frames++;
   state.frames++;
+  // A same is a tick of the clock too: its time (the last frame's, moved on by the frame
+  // period) keeps the estimate of the server's clock fresh. Without it a face at rest
+  // gave the estimate only its first frames, often late (the page still loading), and
+  // speech was then scheduled that much late (340 ms seen).
+  if (c.lastNT) noteFrameArrival(c.lastNT.t + (m.n - c.lastNT.n) / (state.fps || 60));
   if (c.arkit && state.avatar && c === state.characters.values().next().value) {
     state.avatar.apply(c.arkit.weights);  // the same weights and pose, one frame more
     state.avatar.pose(c.arkit.pose);
