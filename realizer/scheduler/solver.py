@@ -780,6 +780,11 @@ def _independent_rows(ri: list[int], rj: list[int], rows: list[int], n: int) -> 
     return [row for row in rows if union(ri[row] % (n + 1), rj[row] % (n + 1))]
 
 
+#: One step of the primal-dual active-set method: x, the working rows'
+#: multipliers, the working rows, and every row's slack at x.
+_PdasStep = tuple[np.ndarray, "np.ndarray | None", list[int], np.ndarray]
+
+
 def _dense_active_set(
     hessian: np.ndarray,
     gradient: np.ndarray,
@@ -796,33 +801,15 @@ def _dense_active_set(
     """
     n = x.size
     ri_list, rj_list = ri.tolist(), rj.tolist()
-    active = _slack(x, ri, rj, b) < -TOLERANCE
-    seen: set[bytes] = set()
-    multipliers = np.zeros(b.size)
-    for _ in range(PDAS_STEPS):
+
+    def step(active: np.ndarray) -> _PdasStep | None:
         working = _independent_rows(ri_list, rj_list, np.flatnonzero(active).tolist(), n)
         solution, lam = _row_kkt(hessian, gradient, ri, rj, working, b)
         if solution is None:
             return None
-        multipliers[:] = 0.0
-        if working:
-            assert lam is not None
-            multipliers[working] = lam
-        slack = _slack(solution, ri, rj, b)
-        scale = 1e-9 * (1.0 + float(np.abs(multipliers).max(initial=0.0)))
-        # A held row stays unless its multiplier is clearly negative (see
-        # _primal_dual_active_set).
-        predicted = (active & (multipliers >= -scale)) | (slack < -TOLERANCE)
-        if np.array_equal(predicted, active):
-            if slack.min(initial=0.0) >= -TOLERANCE and multipliers.min(initial=0.0) >= -scale:
-                return solution, working
-            return None
-        signature = np.packbits(predicted).tobytes()
-        if signature in seen:
-            return None
-        seen.add(signature)
-        active = predicted
-    return None
+        return solution, lam, working, _slack(solution, ri, rj, b)
+
+    return _pdas_steps(_slack(x, ri, rj, b) < -TOLERANCE, step)
 
 
 def _dense_quadratic(
@@ -1025,21 +1012,40 @@ def _primal_dual_active_set(
     back to the primal active-set method. Returns x and the working rows.
     ``kkt``: the KKT solver (:func:`_kkt`, or :func:`_dense_kkt` on dense matrices).
     """
-    kkt = kkt or _kkt
+    solve = kkt or _kkt
     n = x.size
-    active = (matrix @ x - b) < -TOLERANCE
-    seen: set[bytes] = set()
-    multipliers = np.zeros(b.size)
-    for _ in range(PDAS_STEPS):
+
+    def step(active: np.ndarray) -> _PdasStep | None:
         working = _independent(ri, rj, np.flatnonzero(active).tolist(), n)
-        solution, lam = kkt(hessian, gradient, matrix, working, b, quiet=True)
+        solution, lam = solve(hessian, gradient, matrix, working, b, quiet=True)
         if solution is None:
             return None
+        return solution, lam, working, matrix @ solution - b
+
+    return _pdas_steps((matrix @ x - b) < -TOLERANCE, step)
+
+
+def _pdas_steps(
+    active: np.ndarray, step: Callable[[np.ndarray], _PdasStep | None]
+) -> tuple[np.ndarray, list[int]] | None:
+    """The loop both :func:`_primal_dual_active_set` paths share.
+
+    ``step`` solves the KKT system of the rows predicted ``active`` (None
+    when it is singular); the loop predicts the next active rows, stops at
+    the optimum, and gives up (None) on a repeated working set or after
+    :data:`PDAS_STEPS` steps.
+    """
+    seen: set[bytes] = set()
+    multipliers = np.zeros(active.size)
+    for _ in range(PDAS_STEPS):
+        result = step(active)
+        if result is None:
+            return None
+        solution, lam, working, slack = result
         multipliers[:] = 0.0
         if working:
             assert lam is not None
             multipliers[working] = lam
-        slack = matrix @ solution - b
         scale = 1e-9 * (1.0 + float(np.abs(multipliers).max(initial=0.0)))
         # A held row stays unless its multiplier is clearly negative: rows
         # that are active with a zero multiplier (degenerate) would otherwise
