@@ -319,6 +319,9 @@ function onFrame(c, m) {
   state.lastFrame = { n: m.n, t: m.t, faps: count, at: performance.now(), character: c.id };
 }
 
+// The server time of frame n, from an earlier frame's n and t (frames are one period apart).
+function frameTime(earlier, n) { return earlier.t + (n - earlier.n) / (state.fps || 60); }
+
 // Frame n shows what the last frame showed (protocols/viewer.md): nothing to apply.
 function onSame(c, m) {
   c.frames++;
@@ -327,7 +330,7 @@ function onSame(c, m) {
   // period) keeps the estimate of the server's clock fresh. Without it a face at rest
   // gave the estimate only its first frames, often late (the page still loading), and
   // speech was then scheduled that much late (340 ms seen).
-  if (c.lastNT) noteFrameArrival(c.lastNT.t + (m.n - c.lastNT.n) / (state.fps || 60));
+  if (c.lastNT) noteFrameArrival(frameTime(c.lastNT, m.n));
   if (c.arkit && state.avatar && c === state.characters.values().next().value) {
     state.avatar.apply(c.arkit.weights);  // the same weights and pose, one frame more
     state.avatar.pose(c.arkit.pose);
@@ -338,8 +341,7 @@ function onSame(c, m) {
   }
   const last = state.lastFrame;
   if (last && last.character === c.id) {
-    state.lastFrame = { ...last, n: m.n, t: last.t + (m.n - last.n) / (state.fps || 60),
-                        at: performance.now() };
+    state.lastFrame = { ...last, n: m.n, t: frameTime(last, m.n), at: performance.now() };
   }
 }
 
