@@ -165,6 +165,10 @@ class ClockStats:
     max_frame_gap_seconds: float = 0.0
     recent_frame_gaps: deque[float] = field(default_factory=lambda: deque(maxlen=3600))
     last_tick_began: float | None = None
+    #: frame due -> its fan-out done (every viewer's frame written to its
+    #: socket, or put in its mailbox when the socket is full), seconds: the
+    #: service's own part of a frame's delay
+    recent_written: deque[float] = field(default_factory=lambda: deque(maxlen=3600))
 
     def tick_began(self, at: float) -> None:
         """Record that a tick began at ``at`` (loop seconds)."""
@@ -176,9 +180,10 @@ class ClockStats:
 
     def summary(self) -> dict[str, float | int]:
         recent = sorted(self.recent_lateness)
+        written = sorted(self.recent_written)
 
-        def share(q: float) -> float:
-            return recent[min(len(recent) - 1, int(q * len(recent)))] if recent else 0.0
+        def share(q: float, values: list[float] = recent) -> float:
+            return values[min(len(values) - 1, int(q * len(values)))] if values else 0.0
 
         return {
             "started": self.started,
@@ -189,6 +194,8 @@ class ClockStats:
             "max_lateness_seconds": self.max_lateness_seconds,
             "lateness_p50_seconds": share(0.5),
             "lateness_p99_seconds": share(0.99),
+            "written_p50_seconds": share(0.5, written),
+            "written_p99_seconds": share(0.99, written),
             "max_frame_gap_seconds": self.max_frame_gap_seconds,
             "recent_max_frame_gap_seconds": max(self.recent_frame_gaps, default=0.0),
         }
@@ -253,10 +260,10 @@ class Viewer:
         self.audio_queue.append(message)
         self.wake.set()
 
-    def offer(self, frame: bytes, write_limit: int = 0) -> None:
+    def offer(self, frame: bytes, write_limit: int = 0, wire: bytes | None = None) -> None:
         """Send the newest frame, or put it in the mailbox (replacing an
         unsent one) when the viewer's socket buffer holds ``write_limit``
-        bytes or more.
+        bytes or more. ``wire``: ``binary_frame(frame)``, if the caller has it.
 
         The fast path writes at once, as websockets' ``broadcast`` does, but
         only while the pump is idle and the socket's buffer is under the
@@ -274,8 +281,12 @@ class Viewer:
             and connection.transport.get_write_buffer_size() < write_limit
         ):
             try:
-                connection.protocol.send_binary(frame)
-                connection.send_data()
+                # The WebSocket frame's bytes straight to the socket: what
+                # websockets' send_binary would write for this server-side,
+                # unmasked, uncompressed connection, whose writes are all
+                # flushed at once (nothing of it is pending here: the pump is
+                # idle), so order is kept; ``wire`` is built once per tick.
+                connection.transport.write(wire if wire is not None else binary_frame(frame))
             except Exception:  # the connection broke: its pump will see it close
                 return
             self.direct += 1
@@ -286,14 +297,27 @@ class Viewer:
         self.latest_same = False
         self.wake.set()
 
-    def offer_same(self, same: bytes, write_limit: int = 0) -> None:
+    def offer_same(self, same: bytes, write_limit: int = 0, wire: bytes | None = None) -> None:
         """Offer a ``same`` message, unless a frame still waits in the mailbox
         (that frame is newer content than what the viewer has: it must not be
         replaced, and it says more than ``same``)."""
         if self.latest is not None and not self.latest_same:
             return
-        self.offer(same, write_limit)
+        self.offer(same, write_limit, wire)
         self.latest_same = self.latest is not None
+
+
+def binary_frame(payload: bytes) -> bytes:
+    """A final, unmasked WebSocket binary frame (RFC 6455 section 5.2) of
+    ``payload``: what a server without extensions sends for it."""
+    size = len(payload)
+    if size < 126:
+        head = bytes((0x82, size))
+    elif size < 65536:
+        head = b"\x82\x7e" + size.to_bytes(2, "big")
+    else:
+        head = b"\x82\x7f" + size.to_bytes(8, "big")
+    return head + payload
 
 
 class RealizerService:
@@ -457,6 +481,7 @@ class RealizerService:
             except Exception:  # a bug in a session must not stop every character
                 logger.exception("tick %d failed", self._frame)
             spent = time.perf_counter() - started
+            self.stats.recent_written.append(loop.time() - due)
             self.stats.last_tick_seconds = spent
             self.stats.max_tick_seconds = max(self.stats.max_tick_seconds, spent)
             self.stats.ticks += 1
@@ -510,18 +535,21 @@ class RealizerService:
             stale = [v for v in viewers if v.options.coded or not v.same or v.version != version]
         if len(stale) < len(viewers):
             same = codec.same_message(number)
+            same_wire = binary_frame(same)
             chosen = set(stale)
             for viewer in viewers:
                 if viewer not in chosen:
-                    viewer.offer_same(same, WRITE_LIMIT)
+                    viewer.offer_same(same, WRITE_LIMIT, same_wire)
         if stale:
             encoded = encoder.encode(
                 number, character_tick.time, character_tick.frame, (v.options for v in stale)
             )
+            # the WebSocket bytes of each format once (Viewer.offer writes them as they are)
+            wires = {options: binary_frame(data) for options, data in encoded.items()}
             for viewer in stale:
                 data = encoded.get(viewer.options)  # none for ARKit viewers until its fit is set up
                 if data is not None:
-                    viewer.offer(data, WRITE_LIMIT)
+                    viewer.offer(data, WRITE_LIMIT, wires[viewer.options])
                     viewer.version = version
 
     def _send_audio(self, character: str, now: float, viewers: Iterable[Viewer]) -> None:
