@@ -7,7 +7,7 @@ from __future__ import annotations
 import asyncio
 
 from websockets.asyncio.client import connect
-from websockets.frames import OP_BINARY, Frame
+from websockets.frames import Frame, Opcode
 
 from realizer.service import codec
 from realizer.service.server import FaceAssets, binary_frame
@@ -21,7 +21,7 @@ ASSETS = FaceAssets(FakeFace(), fake_deform)
 def test_binary_frame_is_what_websockets_writes_for_a_server() -> None:
     for size in (0, 1, 125, 126, 127, 65535, 65536, 300_000):
         payload = bytes(range(256)) * (size // 256) + bytes(size % 256)
-        expected = Frame(OP_BINARY, payload).serialize(mask=False, extensions=[])
+        expected = Frame(Opcode.BINARY, payload).serialize(mask=False, extensions=[])
         assert binary_frame(payload) == expected, size
 
 
