@@ -35,14 +35,11 @@ Timings are printed, never asserted.
 from __future__ import annotations
 
 import asyncio
-import bisect
 import json
 import os
-import random
 import statistics
 import sys
 import urllib.request
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -69,110 +66,19 @@ def health(port: int) -> dict[str, Any]:
         return data
 
 
-async def measure(
-    gateways: list[int],
-    characters: int,
-    viewers: int,
-    seconds: float,
-    window: Callable[[], None] = lambda: None,
-) -> dict[str, Any]:
-    """Viewers spread over the gateways, probes from one submitter on the
-    first; the same probes and pacing as the service benchmark. ``window``
-    is called when the measured window opens and when it closes."""
-    loop = asyncio.get_running_loop()
-    names = [f"c{i:02d}" for i in range(characters)]
-    logs: list[bench_service.ViewerLog] = []
-    lean: list[bench_service.LeanViewer] = []
-    submitter = await connect(f"ws://127.0.0.1:{gateways[0]}/bml?format=json", compression=None)
-    await submitter.recv()  # welcome
-    for i in range(viewers):
-        port = gateways[i % len(gateways)]
-        log = bench_service.ViewerLog(names[i % characters])
-        _, viewer = await loop.create_connection(
-            lambda log=log, port=port: bench_service.LeanViewer(port, log.character, log, "none"),
-            "127.0.0.1",
-            port,
-        )
-        await asyncio.wait_for(viewer.mesh, 60)
-        lean.append(viewer)
-        logs.append(log)
-
-    accepted: dict[str, float] = {}  # block id -> arrival of its `accepted`
-
-    async def drain() -> None:
-        try:
-            async for text in submitter:
-                if '"accepted"' in text:
-                    message = json.loads(text)
-                    if message.get("type") == "block" and message.get("state") == "accepted":
-                        accepted[message["block"]] = loop.time()
-        except Exception:
-            pass
-
-    feedback = loop.create_task(drain())
-    await asyncio.sleep(1.0)  # every viewer's interest reaches the owners
-    probes: list[tuple[str, float]] = []
-    sent_at: dict[str, float] = {}
-    window()
-    began = loop.time()
-    spacing = 0.6 / characters
-    chance = random.Random(6)
-    index = 0
-    while loop.time() - began < seconds:
-        character = names[index % characters]
-        block = bench_service.PROBE.format(id=f"p{index}", end=0.25)
-        sent = loop.time()
-        await submitter.send(json.dumps({"type": "bml", "bml": block, "character": character}))
-        probes.append((character, sent))
-        sent_at[f"p{index}"] = sent
-        index += 1
-        phase = chance.uniform(0, 1 / FPS)
-        await asyncio.sleep(max(0.0, began + index * spacing + phase - loop.time()))
-    await asyncio.sleep(0.5)
-    ended = loop.time()
-    window()
-    for viewer in lean:
-        viewer.close()
-    await submitter.close()
-    feedback.cancel()
-    acceptance = [accepted[i] - t for i, t in sent_at.items() if i in accepted]
-    return {
-        "logs": logs,
-        "probes": probes,
-        "began": began,
-        "ended": ended,
-        "acceptance": acceptance,
-    }
-
-
 def analyse(data: dict[str, Any], started: dict[str, float]) -> dict[str, Any]:
     """``started``: each character's owner's frame 0 (host monotonic seconds)."""
     period = 1 / FPS
     logs: list[bench_service.ViewerLog] = data["logs"]
     for log in logs:
         log.receipts = [r for r in log.receipts if data["began"] <= r[1] <= data["ended"]]
-    latencies: list[float] = []
-    seen = pairs = 0
-    lit_times = [[t for _, t, lit in log.receipts if lit] for log in logs]
-    for character, sent in data["probes"]:
-        for log, times in zip(logs, lit_times, strict=True):
-            if log.character != character:
-                continue
-            pairs += 1
-            at = bisect.bisect_left(times, sent)
-            if at < len(times) and times[at] - sent < 0.6:
-                latencies.append(times[at] - sent)
-                seen += 1
+    latencies, seen, pairs = bench_service.probe_latencies(data["probes"], logs)
     delivery: list[float] = []
-    dropped = expected = 0
     for log in logs:
         zero = started.get(log.character)
         if zero is not None:
             delivery.extend(t - (zero + n * period) for n, t, _ in log.receipts)
-        if len(log.receipts) >= 2:
-            numbers = [n for n, _, _ in log.receipts]
-            expected += numbers[-1] - numbers[0] + 1
-            dropped += numbers[-1] - numbers[0] + 1 - len(set(numbers))
+    dropped, expected = bench_service.dropped_frames(logs)
     return {
         "latencies": latencies,
         "delivery": delivery,
@@ -204,7 +110,13 @@ def run_cluster_load(
             cpu[name] = process.cpu_percent()
 
     ports = [g.port for g in gateways]
-    data = asyncio.run(measure(ports, characters, viewers, seconds, window))
+    # Viewers spread over the gateways, probes from one submitter on the
+    # first; the same probes and pacing as the service benchmark.
+    data = asyncio.run(
+        bench_service.measure(
+            ports[0], characters, viewers, seconds, "none", ports=ports, settle=1.0, window=window
+        )
+    )
     started: dict[str, float] = {}
     for worker in workers:
         status = health(worker.port)

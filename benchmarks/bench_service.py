@@ -51,6 +51,7 @@ import sys
 import threading
 import time
 import urllib.request
+from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any, NamedTuple
 
@@ -234,8 +235,20 @@ class LeanViewer(asyncio.Protocol):
 
 
 async def measure(
-    port: int, characters: int, viewers: int, seconds: float, vertices: str
+    port: int,
+    characters: int,
+    viewers: int,
+    seconds: float,
+    vertices: str,
+    *,
+    ports: list[int] | None = None,
+    settle: float = 0.5,
+    window: Callable[[], None] = lambda: None,
 ) -> dict[str, Any]:
+    """The load: viewers (spread over ``ports`` when given: a cluster's
+    gateways), then one submitter on ``port`` sending the probes after
+    ``settle`` seconds; ``window`` is called as the measured window opens
+    and as it closes."""
     loop = asyncio.get_running_loop()
     names = [f"c{i:02d}" for i in range(characters)]
     base = f"ws://127.0.0.1:{port}"
@@ -243,10 +256,11 @@ async def measure(
     lean: list[LeanViewer] = []
     for i in range(viewers):
         log = ViewerLog(names[i % characters])
+        at = ports[i % len(ports)] if ports else port
         _, viewer = await loop.create_connection(
-            lambda log=log: LeanViewer(port, log.character, log, vertices), "127.0.0.1", port
+            lambda log=log, at=at: LeanViewer(at, log.character, log, vertices), "127.0.0.1", at
         )
-        await asyncio.wait_for(viewer.mesh, 30)
+        await asyncio.wait_for(viewer.mesh, 60)
         lean.append(viewer)
         logs.append(log)
     submitter = await connect(f"{base}/bml?format=json", compression=None)
@@ -265,9 +279,10 @@ async def measure(
             pass
 
     feedback = loop.create_task(drain_feedback())
-    await asyncio.sleep(0.5)  # let every viewer settle
+    await asyncio.sleep(settle)  # let every viewer settle (a cluster: its interest reach owners)
     probes: list[tuple[str, float]] = []
     sent_at: dict[str, float] = {}
+    window()
     began = loop.time()
     # One probe per character every 0.6 s (each lasts 0.25 s, so the face is
     # neutral again before the next), spread evenly over the period.
@@ -288,6 +303,7 @@ async def measure(
         await asyncio.sleep(max(0.0, began + index * spacing + phase - loop.time()))
     await asyncio.sleep(0.5)
     ended = loop.time()
+    window()
     for viewer in lean:
         viewer.close()
     await submitter.close()
@@ -300,6 +316,42 @@ async def measure(
         "ended": ended,
         "acceptance": acceptance,
     }
+
+
+def probe_latencies(
+    probes: list[tuple[str, float]], logs: list[ViewerLog]
+) -> tuple[list[float], int, int]:
+    """(latencies, probes seen, probe-viewer pairs): for each probe and each
+    viewer of its character, the time to the first frame with FAPs set that
+    arrived after the probe was sent (within 0.6 s)."""
+    latencies: list[float] = []
+    seen = pairs = 0
+    # Per viewer, the arrival times of frames with FAPs set, sorted: the
+    # first at or after a probe was sent is the frame that showed it.
+    lit_times = [[t for _, t, lit in log.receipts if lit] for log in logs]
+    for character, sent in probes:
+        for log, times in zip(logs, lit_times, strict=True):
+            if log.character != character:
+                continue
+            pairs += 1
+            at = bisect.bisect_left(times, sent)
+            if at < len(times) and times[at] - sent < 0.6:
+                latencies.append(times[at] - sent)
+                seen += 1
+    return latencies, seen, pairs
+
+
+def dropped_frames(logs: list[ViewerLog]) -> tuple[int, int]:
+    """(dropped, expected): frame numbers each viewer never received between
+    its first and last receipt, and how many there were."""
+    dropped = expected = 0
+    for log in logs:
+        if len(log.receipts) < 2:
+            continue
+        numbers = [n for n, _, _ in log.receipts]
+        expected += numbers[-1] - numbers[0] + 1
+        dropped += numbers[-1] - numbers[0] + 1 - len(set(numbers))
+    return dropped, expected
 
 
 def analyse(
@@ -317,33 +369,14 @@ def analyse(
     # still being connected one by one and frames waited in their sockets.
     for log in logs:
         log.receipts = [r for r in log.receipts if data["began"] <= r[1] <= data["ended"]]
-    latencies: list[float] = []
+    latencies, seen, pairs = probe_latencies(data["probes"], logs)
     delivery: list[float] = []  # frame due time -> received, for every receipt
-    seen = pairs = 0
-    # Per viewer, the arrival times of frames with FAPs set, sorted: the
-    # first at or after a probe was sent is the frame that showed it.
-    lit_times = [[t for _, t, lit in log.receipts if lit] for log in logs]
-    for character, sent in data["probes"]:
-        for log, times in zip(logs, lit_times, strict=True):
-            if log.character != character:
-                continue
-            pairs += 1
-            at = bisect.bisect_left(times, sent)
-            if at < len(times) and times[at] - sent < 0.6:
-                latencies.append(times[at] - sent)
-                seen += 1
     for log in logs:
         delivery.extend(t - (started + n * period) for n, t, _ in log.receipts)
     jitter: list[float] = []
-    dropped = expected = 0
+    dropped, expected = dropped_frames(logs)
     drift = 0.0
     probe_viewers = {log.character: log for log in reversed(logs)}
-    for log in logs:
-        if len(log.receipts) < 2:
-            continue
-        numbers = [n for n, _, _ in log.receipts]
-        expected += numbers[-1] - numbers[0] + 1
-        dropped += numbers[-1] - numbers[0] + 1 - len(set(numbers))
     for log in probe_viewers.values():
         times = [t for _, t, _ in log.receipts]
         jitter.extend(abs((b - a) - period) for a, b in itertools.pairwise(times))

@@ -12,27 +12,25 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
+from collections.abc import Callable
 from typing import Any
-
-from realizer.commands import plain_text
 
 
 def register(subparsers: Any) -> None:
-    from realizer.commands.worker import add_cluster_options
+    from realizer.commands.worker import cluster_parser
 
-    parser = subparsers.add_parser(
+    parser = cluster_parser(
+        subparsers,
         "gateway",
-        help="serve the realizer's endpoints for a cluster of workers over NATS",
-        description=plain_text(__doc__.split("\n\n")[1]) if __doc__ else None,
+        "serve the realizer's endpoints for a cluster of workers over NATS",
+        __doc__,
+        "viewers=2000",
     )
-    add_cluster_options(parser)
     parser.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
     parser.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 = any free)")
     parser.add_argument(
         "--fps", type=float, default=60.0, help="the workers' frames per second (reported)"
     )
-    parser.add_argument("--character", default="default", help="character for BML that names none")
     parser.add_argument(
         "--submit-token",
         default=os.environ.get("REALIZER_SUBMIT_TOKEN"),
@@ -42,13 +40,6 @@ def register(subparsers: Any) -> None:
         "--view-token",
         default=os.environ.get("REALIZER_VIEW_TOKEN"),
         help="token that allows only viewing (default: $REALIZER_VIEW_TOKEN)",
-    )
-    parser.add_argument(
-        "--limit",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="override a named limit, e.g. --limit viewers=2000",
     )
     parser.add_argument(
         "--owner-wait",
@@ -61,21 +52,16 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import logging
-    from dataclasses import replace
+    from realizer.commands.worker import cluster_config, run_cluster_role
 
-    from realizer.commands.serve import _limits
-    from realizer.service.limits import DEFAULT_LIMITS
-    from realizer.service.server import RealizerService, ServiceConfig, run_until_stopped_blocking
+    def build() -> tuple[Any, Callable[[int], str]]:
+        from dataclasses import replace
 
-    logging.basicConfig(level=logging.WARNING, format="realizer: %(message)s")
-    from realizer.extras import require
+        from realizer.commands.serve import _limits
+        from realizer.service.cluster.gateway import ClusterGateway
+        from realizer.service.limits import DEFAULT_LIMITS
+        from realizer.service.server import ServiceConfig
 
-    require("cluster", "realizer gateway")
-    from realizer.service.cluster.bus import ClusterConfig
-    from realizer.service.cluster.gateway import ClusterGateway
-
-    try:
         config = ServiceConfig(
             host=args.host,
             port=args.port,
@@ -84,26 +70,17 @@ def run(args: argparse.Namespace) -> int:
             view_token=args.view_token or None,
             limits=replace(DEFAULT_LIMITS, **_limits(args.limit)),
         )
-        cluster = ClusterConfig(
-            args.nats, node_id=args.id, lease_ttl=args.lease_ttl, owner_wait=args.owner_wait
-        )
+        cluster = cluster_config(args, owner_wait=args.owner_wait)
         gateway = ClusterGateway(config, cluster, default_character=args.character)
-    except ValueError as exc:
-        print(f"realizer gateway: {exc}", file=sys.stderr)
-        return 2
-
-    def ready(service: RealizerService) -> None:
         host = f"[{args.host}]" if ":" in args.host else args.host
-        print(
-            f"realizer: gateway {gateway.gateway_id} serving on {host}:{service.port} "
-            f"(viewer http://{host}:{service.port}/, BML ws://{host}:{service.port}/bml) "
-            f"for the workers on {args.nats}",
-            file=sys.stderr,
-            flush=True,
-        )
 
-    try:
-        return run_until_stopped_blocking(gateway, ready=ready)
-    except Exception as exc:  # the port is in use, NATS cannot be reached
-        print(f"realizer gateway: {exc or type(exc).__name__}", file=sys.stderr)
-        return 2
+        def ready(port: int) -> str:
+            return (
+                f"realizer: gateway {gateway.gateway_id} serving on {host}:{port} "
+                f"(viewer http://{host}:{port}/, BML ws://{host}:{port}/bml) "
+                f"for the workers on {args.nats}"
+            )
+
+        return gateway, ready
+
+    return run_cluster_role("gateway", build)

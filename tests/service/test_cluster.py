@@ -194,14 +194,43 @@ def health(port: int) -> dict[str, Any]:
         return data
 
 
+def wait_until(condition: Any, what: str, timeout: float = 10 * UNIT, pause: float = 0.05) -> Any:
+    """Poll ``condition()`` until it returns something true (returned);
+    fail saying ``what`` did not happen within ``timeout`` seconds."""
+    deadline = time.monotonic() + timeout
+    while True:
+        found = condition()
+        if found:
+            return found
+        assert time.monotonic() < deadline, what
+        time.sleep(pause)
+
+
 def owner_of(workers: list[Any], character: str) -> Any:
-    deadline = time.monotonic() + 10 * UNIT
-    while time.monotonic() < deadline:
+    def owner() -> Any:
         for worker in workers:
             if worker.process.poll() is None and character in health(worker.port)["owned"]:
                 return worker
-        time.sleep(0.05)
-    raise AssertionError(f"no worker owns {character!r}")
+        return None
+
+    return wait_until(owner, f"no worker owns {character!r}")
+
+
+@contextlib.contextmanager
+def running_block(
+    cluster: Any, character: str, block_id: str, end: float
+) -> Iterator[tuple[Any, Any, Any]]:
+    """Two workers and one gateway; a submitter on it whose block runs
+    (accepted) on ``character``'s owner: (submitter, owner, the other worker)."""
+    from realizer.service.client import SubmitClient
+
+    workers, (gateway,) = cluster.start(workers=2, gateways=1)
+    with SubmitClient(f"ws://127.0.0.1:{gateway.port}", character=character) as submitter:
+        submitter.submit(smile(block_id, end, character))
+        read_until(submitter, block_state(block_id, "accepted"), 10 * UNIT)
+        owner = owner_of(workers, character)
+        (other,) = [w for w in workers if w is not owner]
+        yield submitter, owner, other
 
 
 def read_until(client: Any, done: Any, timeout: float) -> list[dict[str, Any]]:
@@ -329,24 +358,16 @@ def test_when_a_gateway_is_killed_its_clients_carry_on_at_the_other(cluster: Any
 def test_a_worker_stopped_with_sigterm_lets_its_running_block_finish_then_hands_over(
     cluster: Any,
 ) -> None:
-    from realizer.service.client import SubmitClient
-
-    workers, (gate_a,) = cluster.start(workers=2, gateways=1)
-    with SubmitClient(f"ws://127.0.0.1:{gate_a.port}", character="dora") as submitter:
-        submitter.submit(smile("running", 3.0, "dora"))
-        read_until(submitter, block_state("running", "accepted"), 10 * UNIT)
-        owner = owner_of(workers, "dora")
-        (other,) = [w for w in workers if w is not owner]
+    with running_block(cluster, "dora", "running", 3.0) as (submitter, owner, other):
         owner.process.terminate()  # SIGTERM
-        deadline = time.monotonic() + 10 * UNIT
-        while True:
+
+        def leaving() -> bool:
             try:
-                if health(owner.port)["draining"]:
-                    break
+                return bool(health(owner.port)["draining"])
             except OSError:  # already gone: it left
-                break
-            assert time.monotonic() < deadline, "the worker did not start leaving"
-            time.sleep(0.02)
+                return True
+
+        wait_until(leaving, "the worker did not start leaving", pause=0.02)
         # A block sent while the owner is leaving waits for the next owner.
         submitter.submit(smile("queued", 0.3, "dora"))
         messages = read_until(submitter, block_state("queued", "done", "rejected"), 20 * UNIT)
@@ -364,14 +385,7 @@ def test_an_owner_paused_past_its_lease_is_taken_over_and_lets_the_character_go(
 ) -> None:
     import signal
 
-    from realizer.service.client import SubmitClient
-
-    workers, (gate_a,) = cluster.start(workers=2, gateways=1)
-    with SubmitClient(f"ws://127.0.0.1:{gate_a.port}", character="erin") as submitter:
-        submitter.submit(smile("long", 30.0, "erin"))
-        read_until(submitter, block_state("long", "accepted"), 10 * UNIT)
-        owner = owner_of(workers, "erin")
-        (other,) = [w for w in workers if w is not owner]
+    with running_block(cluster, "erin", "long", 30.0) as (submitter, owner, other):
         owner.process.send_signal(signal.SIGSTOP)
         try:
             messages = read_until(submitter, block_state("long", "interrupted"), 20 * UNIT)
@@ -381,10 +395,9 @@ def test_an_owner_paused_past_its_lease_is_taken_over_and_lets_the_character_go(
             owner.process.send_signal(signal.SIGCONT)
         # Back, the old owner finds its lease taken and stops running erin:
         # exactly one end of the block, and erin is owned only by the other.
-        deadline = time.monotonic() + 10 * UNIT
-        while "erin" in health(owner.port)["owned"]:
-            assert time.monotonic() < deadline, "the old owner still runs erin"
-            time.sleep(0.05)
+        wait_until(
+            lambda: "erin" not in health(owner.port)["owned"], "the old owner still runs erin"
+        )
         submitter.submit(smile("after", 0.3, "erin"))
         after = read_until(submitter, block_state("after", "done", "rejected"), 10 * UNIT)
         assert after[-1]["state"] == "done"
@@ -476,10 +489,11 @@ def test_a_worker_frees_idle_characters_nobody_watches_and_keeps_the_watched_one
             submitter.submit(smile("short", 0.1, "gone"))
             read_until(submitter, block_state("short", "done", "rejected"), 10 * UNIT)
         assert {"watched", "gone"} <= set(health(worker.port)["owned"])
-        deadline = time.monotonic() + 10 * UNIT
-        while "gone" in health(worker.port)["owned"]:
-            assert time.monotonic() < deadline, "the idle character's lease was kept"
-            time.sleep(0.1)
+        wait_until(
+            lambda: "gone" not in health(worker.port)["owned"],
+            "the idle character's lease was kept",
+            pause=0.1,
+        )
         time.sleep(1.5)  # past the idle time of the watched character too
         assert "watched" in health(worker.port)["owned"]
         numbers = [frame["n"] for frame in view.frames(5, timeout=5 * UNIT)]
