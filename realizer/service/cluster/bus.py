@@ -19,10 +19,14 @@ from nats.js.kv import KeyValue
 
 from realizer.service.cluster.protocol import LEASE_BUCKET
 
+#: This machine's name (in lease values: a gateway on the same machine may
+#: compare the owner's monotonic clock with its own).
+HOST = socket.gethostname()[:200]
+
 
 def default_node_id(role: str) -> str:
     """``role-host-pid-xxxx``: unique per process, readable in logs."""
-    host = socket.gethostname().split(".")[0][:40] or "host"
+    host = HOST.split(".")[0][:40] or "host"
     return f"{role}-{host}-{os.getpid()}-{uuid.uuid4().hex[:4]}"
 
 

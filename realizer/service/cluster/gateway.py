@@ -35,13 +35,20 @@ import logging
 import time
 from typing import Any, cast
 
+import msgpack
 import nats.errors
 from lxml import etree
 from nats.aio.client import Client
 from nats.aio.msg import Msg
 from nats.aio.subscription import Subscription
 
-from realizer.service.cluster.bus import ClusterConfig, connect, default_node_id, lease_bucket
+from realizer.service.cluster.bus import (
+    HOST,
+    ClusterConfig,
+    connect,
+    default_node_id,
+    lease_bucket,
+)
 from realizer.service.cluster.leases import LeaseTable
 from realizer.service.cluster.protocol import (
     CLUSTER_VERSION,
@@ -59,6 +66,7 @@ from realizer.service.cluster.protocol import (
     unpack_feedback,
     untoken,
 )
+from realizer.service.cluster.timing import Durations, summaries
 from realizer.service.errors import BadMessage, CloseCode, LimitExceeded, PeerError
 from realizer.service.limits import valid_character_id
 from realizer.service.messages import (
@@ -82,6 +90,10 @@ logger = logging.getLogger("realizer.cluster")
 
 #: The part of a BML document read to find its ``characterId`` (bytes).
 ROOT_SCAN_BYTES = 4096
+#: Messages of one submitter forwarded at once (to different characters;
+#: each character's in order); the connection's next message is read when
+#: one of them is done.
+IN_FLIGHT = 16
 
 
 class NoOwner(PeerError):
@@ -142,8 +154,16 @@ class ClusterGateway(RealizerService):
         self.frames_received = 0
         #: frames superseded at the gateway before its fan-out ran (it was behind)
         self.frames_superseded = 0
-        #: the newest frame per (character, format key) not yet fanned out
-        self._newest: dict[tuple[str, str], bytes] = {}
+        #: the newest frame per (character, format key) not yet fanned out,
+        #: with its due time on this host's loop clock (0.0: not known)
+        self._newest: dict[tuple[str, str], tuple[bytes, float]] = {}
+        #: per submitter, the last forwarding task of each character
+        self._lanes: dict[Submitter, dict[str, asyncio.Task[None]]] = {}
+        #: forward: a bml message's arrival -> the owner's reply (the block
+        #: accepted or refused); frame_written: a frame's due time on its
+        #: owner's clock -> written to the last viewer here (owners on this
+        #: host only)
+        self.timings = {name: Durations() for name in ("forward", "frame_written")}
         self._fan_out_due = False
         self._frame_subscriptions: dict[str, Subscription] = {}
         self._want_changed = asyncio.Event()
@@ -179,6 +199,7 @@ class ClusterGateway(RealizerService):
             framesReceived=self.frames_received,
             framesSuperseded=self.frames_superseded,
             nats=bool(self.nats is not None and self.nats.is_connected),
+            timings=summaries(self.timings),
         )
         report.pop("frame", None)
         return report
@@ -226,8 +247,16 @@ class ClusterGateway(RealizerService):
 
     async def _on_submit(self, submitter: Submitter, text: str) -> None:
         """What ``realizer serve`` does with a submitter message, with the
-        stage's work done by the character's owner; the connection's next
-        message is read only when this one is done, so order is kept."""
+        stage's work done by the character's owner.
+
+        A character's messages are forwarded one at a time, in the order
+        they came (each waits for the owner's reply to the one before);
+        messages to different characters are forwarded at once, up to
+        :data:`IN_FLIGHT` per submitter, beyond which the connection's next
+        message is read only when one of them is done. So one character's
+        slow round (its owner's plan and lease write) does not hold back a
+        block for another, as it did when every message waited for the one
+        before it."""
         now = self.now()
         try:
             request = read_submitter_message(text)
@@ -238,8 +267,49 @@ class ClusterGateway(RealizerService):
             warning = WireFeedback(submitter.default_character, "warning", "", now, xml)
             self._push(submitter, _render(warning, submitter.format))
             return
+        character = self._character_of(submitter, request)
+        lanes = self._lanes.setdefault(submitter, {})
+        before = lanes.get(character)
+        task = self._spawn(self._forward_in_turn(before, submitter, request, character, now))
+        lanes[character] = task
+
+        def done(finished: asyncio.Task[None]) -> None:
+            if lanes.get(character) is finished:
+                del lanes[character]
+            if not lanes and self._lanes.get(submitter) is lanes:
+                del self._lanes[submitter]
+
+        task.add_done_callback(done)
+        if len(lanes) >= IN_FLIGHT:
+            await asyncio.wait(list(lanes.values()), return_when=asyncio.FIRST_COMPLETED)
+
+    def _character_of(self, submitter: Submitter, request: SubmitterRequest) -> str:
+        """The character a message goes to, with ``realizer serve``'s
+        precedence (the envelope's, the block's ``characterId``, the
+        connection's)."""
+        if request["type"] == "bml":
+            return (
+                request.get("character")
+                or root_attribute(request["bml"], "characterId")
+                or submitter.default_character
+            )
+        if request["type"] == "target":
+            return ""
+        return request.get("character", submitter.default_character)
+
+    async def _forward_in_turn(
+        self,
+        before: asyncio.Task[None] | None,
+        submitter: Submitter,
+        request: SubmitterRequest,
+        character: str,
+        now: float,
+    ) -> None:
+        if before is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.shield(before)
         try:
-            await self._forward(submitter, request, now)
+            await self._forward(submitter, request, character, now)
         except Exception:
             logger.exception("internal error on a submitted message")
             xml = warning_feedback_xml(
@@ -248,14 +318,11 @@ class ClusterGateway(RealizerService):
             warning = WireFeedback(submitter.default_character, "warning", "", self.now(), xml)
             self._dispatch([warning], also=submitter)
 
-    async def _forward(self, submitter: Submitter, request: SubmitterRequest, now: float) -> None:
+    async def _forward(
+        self, submitter: Submitter, request: SubmitterRequest, character: str, now: float
+    ) -> None:
         if request["type"] == "bml":
             text = request["bml"]
-            character = (
-                request.get("character")
-                or root_attribute(text, "characterId")
-                or submitter.default_character
-            )
             if not valid_character_id(character):
                 # What the stage answers; it needs no session for this.
                 self._dispatch(self.stage.submit_bml(text, now, character=character).messages,
@@ -279,7 +346,6 @@ class ClusterGateway(RealizerService):
             self._dispatch([warning], also=submitter)
             return
         else:
-            character = request.get("character", submitter.default_character)
             if not valid_character_id(character):
                 self._dispatch(
                     self.stage.interrupt(character, request["block"], now), also=submitter
@@ -293,6 +359,8 @@ class ClusterGateway(RealizerService):
         except NoOwner as exc:
             self._refuse(submitter, owner_request, exc.message)
             return
+        if owner_request.op == "bml":
+            self.timings["forward"].add(self.now() - now)
         if reply.status == "none":
             self._dispatch(
                 self.stage.interrupt(character, owner_request.block, now), also=submitter
@@ -409,17 +477,37 @@ class ClusterGateway(RealizerService):
         self.frames_received += 1
         if key in self._newest:
             self.frames_superseded += 1
-        self._newest[key] = msg.data
+        self._newest[key] = (msg.data, self._due(key[0], msg.data))
         if not self._fan_out_due:
             self._fan_out_due = True
             asyncio.get_running_loop().call_soon(self._fan_out)
 
+    def _due(self, character: str, data: bytes) -> float:
+        """A frame's due time on this host's loop clock, from its owner's
+        frame 0 (the lease) and its number; 0.0 when the owner runs on
+        another host (its monotonic clock is not this one's) or the frame
+        cannot be read. Only the frame's own bytes are read, never trusted
+        for anything but this figure."""
+        lease = self.table.leases.get(character)
+        if lease is None or lease.value.host != HOST or not lease.value.clock:
+            return 0.0
+        try:
+            number = msgpack.unpackb(data).get("n")
+        except Exception:  # not ours to judge: the viewers get it as it came
+            return 0.0
+        if not isinstance(number, int) or isinstance(number, bool):
+            return 0.0
+        return lease.value.clock + number / self.config.fps
+
     def _fan_out(self) -> None:
         self._fan_out_due = False
         newest, self._newest = self._newest, {}
-        for (character, key), data in newest.items():
+        written = self.timings["frame_written"]
+        for (character, key), (data, due) in newest.items():
             for viewer in self.by_format.get(character, {}).get(key, ()):
                 viewer.offer(data, WRITE_LIMIT)
+            if due:
+                written.add(asyncio.get_running_loop().time() - due)
 
     def _wants(self) -> dict[str, set[ViewOptions]]:
         return {

@@ -17,6 +17,7 @@ worker or a gateway hold unbounded state.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, fields
 from typing import Any, Literal
 
@@ -363,15 +364,22 @@ def unpack_want(
 @dataclass(frozen=True, slots=True)
 class LeaseValue:
     """A lease's value: the owning worker and the blocks it had open when it
-    last wrote the lease (a taker-over ends those with a warning)."""
+    last wrote the lease (a taker-over ends those with a warning); the
+    owner's host name and its clock's frame 0 on that host's monotonic
+    clock (seconds), with which a gateway on the same host times frames
+    from their due time (``/health``; ignored on another host)."""
 
     owner: str
     blocks: tuple[str, ...] = ()
+    host: str = ""
+    clock: float = 0.0
 
     def pack(self) -> bytes:
         # JSON, so `nats kv get` shows it as it is.
-        text = json.dumps({"v": CLUSTER_VERSION, "owner": self.owner, "blocks": self.blocks})
-        return text.encode()
+        message = {"v": CLUSTER_VERSION, "owner": self.owner, "blocks": self.blocks}
+        if self.host:
+            message.update(host=self.host, clock=self.clock)
+        return json.dumps(message).encode()
 
     @classmethod
     def unpack(cls, data: bytes, limits: ClusterLimits = CLUSTER_LIMITS) -> LeaseValue:
@@ -391,4 +399,16 @@ class LeaseValue:
             or not all(isinstance(b, str) and len(b) <= limits.id_chars for b in blocks)
         ):
             raise ClusterMessageError(f"'blocks' must be at most {limits.lease_blocks} block ids")
-        return cls(owner, tuple(blocks))
+        host = message.get("host", "")
+        clock = message.get("clock", 0.0)
+        if not isinstance(host, str) or len(host) > limits.id_chars:
+            raise ClusterMessageError(
+                f"'host' must be text of at most {limits.id_chars} characters"
+            )
+        if (
+            not isinstance(clock, (int, float))
+            or isinstance(clock, bool)
+            or not math.isfinite(clock)
+        ):
+            raise ClusterMessageError("'clock' must be a finite number")
+        return cls(owner, tuple(blocks), host, float(clock))

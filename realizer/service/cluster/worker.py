@@ -47,7 +47,13 @@ from websockets.asyncio.server import ServerConnection
 from websockets.http11 import Request
 
 from realizer.feedback import block_progress
-from realizer.service.cluster.bus import ClusterConfig, connect, default_node_id, lease_bucket
+from realizer.service.cluster.bus import (
+    HOST,
+    ClusterConfig,
+    connect,
+    default_node_id,
+    lease_bucket,
+)
 from realizer.service.cluster.leases import LeaseTable, ObservedLease
 from realizer.service.cluster.protocol import (
     CLUSTER_LIMITS,
@@ -67,6 +73,7 @@ from realizer.service.cluster.protocol import (
     unpack_want,
     untoken,
 )
+from realizer.service.cluster.timing import Durations, summaries
 from realizer.service.messages import ViewOptions, warning_feedback_xml
 from realizer.service.server import (
     FaceAssets,
@@ -120,7 +127,14 @@ class ClusterWorker(RealizerService):
         self.dropped = 0
         self.nats: Client | None = None
         self.kv: KeyValue | None = None
-        self._outbox: deque[tuple[str, bytes]] = deque()
+        #: (subject, body, frame due time in loop seconds or 0.0) to publish, in order
+        self._outbox: deque[tuple[str, bytes, float]] = deque()
+        #: request: a bml request's arrival -> its reply; plan: its parse and
+        #: plan; lease_write: the lease write that records the accepted
+        #: block; frame_published: a frame's due time -> handed to NATS
+        self.timings = {
+            name: Durations() for name in ("request", "plan", "lease_write", "frame_published")
+        }
         self._outbox_wake = asyncio.Event()
         self._claims: Subscription | None = None
 
@@ -166,7 +180,7 @@ class ClusterWorker(RealizerService):
         # The outbox task was cancelled with the others: flush by hand.
         with contextlib.suppress(Exception):
             while self._outbox:
-                subject, data = self._outbox.popleft()
+                subject, data, _ = self._outbox.popleft()
                 await self.nats.publish(subject, data)
             await self.nats.flush(timeout=max(1, int(self.config.shutdown_timeout)))
         with contextlib.suppress(Exception):
@@ -195,30 +209,36 @@ class ClusterWorker(RealizerService):
             lostBlocks=self.lost_blocks,
             droppedMessages=self.dropped,
             nats=bool(self.nats is not None and self.nats.is_connected),
+            timings=summaries(self.timings),
         )
         return report
 
     # -- publishing -------------------------------------------------------------------
 
-    def _send(self, subject: str, data: bytes) -> None:
+    def _send(self, subject: str, data: bytes, due: float = 0.0) -> None:
         if len(self._outbox) >= OUTBOX_LIMIT:
             self._outbox.popleft()
             self.dropped += 1
-        self._outbox.append((subject, data))
+        self._outbox.append((subject, data, due))
         self._outbox_wake.set()
 
     async def _publish_outbox(self) -> None:
         assert self.nats is not None
+        loop = asyncio.get_running_loop()
+        published = self.timings["frame_published"]
         while True:
             while not self._outbox:
                 self._outbox_wake.clear()
                 await self._outbox_wake.wait()
-            subject, data = self._outbox.popleft()
+            subject, data, due = self._outbox.popleft()
             try:
                 await self.nats.publish(subject, data)
             except Exception as exc:  # disconnected, buffer full: the message is lost
                 self.dropped += 1
                 logger.debug("publish on %s failed: %s", subject, exc)
+                continue
+            if due:
+                published.add(loop.time() - due)
 
     def _dispatch(self, messages: Any, also: Submitter | None = None) -> None:
         """The clock's and the shutdown's feedback goes to the gateways.
@@ -257,8 +277,9 @@ class ClusterWorker(RealizerService):
         encoded = self._encoder(character).encode(
             number, character_tick.time, character_tick.frame, formats
         )
+        due = self._start + number / self.config.fps
         for options, data in encoded.items():
-            self._send(frame_subject(character, options), data)
+            self._send(frame_subject(character, options), data, due)
 
     # -- requests -----------------------------------------------------------------------
 
@@ -307,6 +328,7 @@ class ClusterWorker(RealizerService):
             self._reply(msg, OwnerReply("retry", self.worker_id, "owned elsewhere"))
 
     async def _on_request(self, msg: Msg) -> None:
+        arrived = time.perf_counter()
         try:
             request = OwnerRequest.unpack(msg.data)
             if request_subject(request.character) != msg.subject:
@@ -315,6 +337,8 @@ class ClusterWorker(RealizerService):
             self._reply(msg, OwnerReply("error", self.worker_id, str(exc)))
             return
         await self._carry_out(request, msg)
+        if request.op == "bml":
+            self.timings["request"].add(time.perf_counter() - arrived)
 
     async def _carry_out(self, request: OwnerRequest, msg: Msg) -> None:
         """Carry out a request for a character this worker owns, on the
@@ -331,6 +355,7 @@ class ClusterWorker(RealizerService):
             # the clock of every character here never waits for a submitter.
             # Requests of one character stay in order (one subscription's
             # callbacks run one at a time).
+            planning = time.perf_counter()
             try:
                 result = await asyncio.get_running_loop().run_in_executor(
                     self._planner,
@@ -346,6 +371,7 @@ class ClusterWorker(RealizerService):
             except RuntimeError:  # the planner is shut down: the worker is stopping
                 self._reply(msg, OwnerReply("retry", self.worker_id, "worker stopping"))
                 return
+            self.timings["plan"].add(time.perf_counter() - planning)
             current = self.owned.get(character)
             if current is None:  # lost while it was planned
                 self._publish_feedback(result.messages, request.reply_to)
@@ -363,7 +389,9 @@ class ClusterWorker(RealizerService):
                 # Record the open block before answering, so a taker-over
                 # knows to end it if this worker dies now.
                 owned.dirty = True
+                writing = time.perf_counter()
                 await self._write_lease(character)
+                self.timings["lease_write"].add(time.perf_counter() - writing)
         elif request.op == "interrupt":
             messages = self.stage.interrupt(character, request.block, now)
             self._publish_feedback(messages, request.reply_to)
@@ -424,7 +452,7 @@ class ClusterWorker(RealizerService):
     def _lease_value(self, character: str) -> LeaseValue:
         found = self.stage.characters.get(character)
         blocks = tuple(found.open_blocks)[: CLUSTER_LIMITS.lease_blocks] if found else ()
-        return LeaseValue(self.worker_id, blocks)
+        return LeaseValue(self.worker_id, blocks, HOST, self._start)
 
     def _viewer_room(self) -> bool:
         """Whether viewers alone may make one more character here
@@ -435,7 +463,7 @@ class ClusterWorker(RealizerService):
     async def _create(self, character: str, *, for_viewer: bool = False) -> bool:
         assert self.kv is not None
         try:
-            revision = await self.kv.create(token(character), LeaseValue(self.worker_id).pack())
+            revision = await self.kv.create(token(character), self._lease_value(character).pack())
         except KeyWrongLastSequenceError:
             return False
         return await self._own(character, revision, for_viewer=for_viewer)
@@ -446,7 +474,7 @@ class ClusterWorker(RealizerService):
         character = lease.character
         try:
             revision = await self.kv.update(
-                token(character), LeaseValue(self.worker_id).pack(), last=lease.revision
+                token(character), self._lease_value(character).pack(), last=lease.revision
             )
         except KeyWrongLastSequenceError:
             return False
