@@ -136,10 +136,16 @@ def run_cluster_load(
     result["owners"] = {w.node_id: len(health(w.port)["owned"]) for w in workers}
     # The processes' own timings (/health; the recent values, this load only:
     # the cluster is started afresh for each load).
-    result["timings"] = {
-        f"{child.role} {i}": health(child.port)["timings"]
-        for i, child in enumerate(workers + gateways)
-    }
+    result["timings"] = {}
+    for i, child in enumerate(workers + gateways):
+        status = health(child.port)
+        timings = status["timings"]
+        # frames the gateway sent only the newest of (it was behind), ticks a worker skipped
+        timings["counts"] = {
+            "superseded": status.get("framesSuperseded", 0),
+            "skipped": status["clock"]["skipped"] if "clock" in status else 0,
+        }
+        result["timings"][f"{child.role} {i}"] = timings
     return result
 
 
@@ -162,6 +168,9 @@ def print_timings(timings: dict[str, dict[str, dict[str, float]]]) -> None:
                     f"{step} {found['p50_seconds'] * 1000:.2f}/{found['p99_seconds'] * 1000:.2f}"
                     f" ({found['count']})"
                 )
+        counts = steps.get("counts", {})
+        key = "superseded" if role == "gateway" else "skipped"
+        parts.append(f"frames {key} {counts.get(key, 0)}")
         print(f"{'':>18} {name}: " + ", ".join(parts))
 
 

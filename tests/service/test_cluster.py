@@ -603,9 +603,11 @@ def test_a_gateway_behind_on_frames_sends_each_viewer_the_newest_not_the_backlog
     NATS delivered them, so one that fell behind (CPU-starved: 50 characters
     x 200 viewers on a loaded machine) worked through its whole backlog and
     its viewers saw frames hundreds of ms old. A frame now supersedes the
-    unsent one of its character and format, as in a viewer's mailbox: a
-    backlog read at once is fanned out as its newest frame; frames that come
-    one at a time all go out."""
+    last but one unsent frame of its character and format: a backlog read
+    at once is fanned out as its two newest frames, in order; frames that
+    come one or two at a time all go out (regression too: a gateway that
+    kept only the newest dropped one of two ticks a late worker published
+    in one write)."""
     import asyncio
 
     pytest.importorskip("nats", reason="the cluster extra (nats-py) is not installed")
@@ -639,8 +641,11 @@ def test_a_gateway_behind_on_frames_sends_each_viewer_the_newest_not_the_backlog
         for n in range(5, 8):  # one at a time
             await gateway._on_frame(Message(frame_subject("anna", options), b"a%d" % n))  # type: ignore[arg-type]
             await asyncio.sleep(0)
+        for n in range(8, 10):  # two at once: a late worker's two ticks
+            await gateway._on_frame(Message(frame_subject("anna", options), b"a%d" % n))  # type: ignore[arg-type]
+        await asyncio.sleep(0)
         return viewer.frames, other.frames, gateway.frames_superseded
 
     frames, others, superseded = asyncio.run(scenario())
-    assert frames == [b"a4", b"a5", b"a6", b"a7"]
-    assert others == [b"b0"] and superseded == 4
+    assert frames == [b"a3", b"a4", b"a5", b"a6", b"a7", b"a8", b"a9"]
+    assert others == [b"b0"] and superseded == 3
