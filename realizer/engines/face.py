@@ -231,6 +231,10 @@ def _shape_number(table: ShapeTable, text: str) -> int:
     raise ConversionError(f"unknown {table.kind.lower()} {text!r}")
 
 
+#: Timing models kept by :meth:`FaceEngine.timing` (then the cache starts again).
+TIMING_CACHE = 1024
+
+
 @dataclass(frozen=True, slots=True)
 class FaceEngine:
     """Plans and realizes face, head and gaze behaviours; data defaults to the shipped files."""
@@ -245,6 +249,12 @@ class FaceEngine:
     #: checks each lexeme once, not once per behaviour
     _valid: set[tuple[str, tuple[tuple[str, str], ...]]] = field(
         default_factory=set, compare=False, repr=False
+    )
+    #: (type, sync points) -> the timing model: models are immutable and
+    #: depend on nothing else, so a block plans each shape once (the
+    #: scheduler reads a model's precomputed phase table, made once a model)
+    _timings: dict[tuple[str, tuple[str, ...]], TimingModel] = field(
+        default_factory=dict, compare=False, repr=False
     )
 
     @classmethod
@@ -267,6 +277,16 @@ class FaceEngine:
         """Sync points and phase preferences (seconds) of a handled behaviour."""
         syncs = tuple(behaviour.syncs)
         kind = behaviour.type
+        cached = self._timings.get((kind, syncs))
+        if cached is not None:
+            return cached
+        model = self._timing(behaviour, kind, syncs)
+        if len(self._timings) >= TIMING_CACHE:
+            self._timings.clear()  # bounded: sync sets come from the peer
+        self._timings[(kind, syncs)] = model
+        return model
+
+    def _timing(self, behaviour: Behaviour, kind: str, syncs: tuple[str, ...]) -> TimingModel:
         table: tuple[Phase, ...]
         if kind in ("faceShift", "gazeShift"):
             table = _phase_table("shift")

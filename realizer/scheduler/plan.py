@@ -187,7 +187,7 @@ class _Builder:
             )
             return None
         name = ref.sync if ref.iteration is None else _sync_name(ref)
-        if name not in model.syncs:
+        if name not in model.positions:
             self.warn(
                 WarningType.NO_SUCH_TARGET,
                 f"{holder}: {behaviour!r} has no sync point {name!r}",
@@ -232,7 +232,7 @@ class _Builder:
             if model is None or behaviour_id in skip:
                 continue
             source = self._source("behaviour", behaviour_id, behaviour.required)
-            problem.add_behaviour(behaviour_id, model.syncs, model.phases, source)
+            problem.add_model(behaviour_id, model, source)
             if record:
                 self._phase_edges(behaviour_id, model, source)
             refs: Sequence[tuple[str, SyncRef]] = behaviour.sync_refs

@@ -58,7 +58,7 @@ import numpy as np
 
 from realizer.errors import RealizerError
 from realizer.extras import missing_module
-from realizer.scheduler.timing import Phase
+from realizer.scheduler.timing import Phase, TimingModel
 
 if TYPE_CHECKING:  # scipy is imported by the sparse path only (_scipy)
     import scipy.sparse as sp
@@ -126,18 +126,26 @@ class Problem:
     """Sync points, phases and constraints of one block (or several).
 
     ``keys`` maps every sync point to its index (the order of first
-    mention; :data:`BLOCK_START` is 0). The lists ``phases``,
-    ``equalities``, ``orderings`` and ``starts`` say what was added, in
-    the caller's terms; the methods also keep the same in indices (the
-    private lists), which is what the solvers read, so a problem is only
-    ever changed through the methods.
+    mention; :data:`BLOCK_START` is 0). ``phases``, ``equalities``,
+    ``orderings`` and ``starts`` say what was added, in the caller's terms;
+    they are made on demand (only a conflict, a test or a tool reads them)
+    from what the methods record. The solvers read the index lists (the
+    private fields), so a problem is only ever changed through the methods.
     """
 
     keys: dict[Key, int] = field(default_factory=dict)
-    phases: list[tuple[Key, Key, Phase, Source]] = field(default_factory=list)
-    equalities: list[_Relation] = field(default_factory=list)
-    orderings: list[_Relation] = field(default_factory=list)
-    starts: list[Key] = field(default_factory=list)
+    #: each behaviour as added: id, sync names, phases, source, and the index
+    #: of its first key (consecutive keys) or the list of its key indices
+    _chains: list[tuple[str, tuple[str, ...], tuple[Phase, ...], Source, int | list[int]]] = field(
+        default_factory=list, repr=False
+    )
+    #: each equality and ordering as given: a, ka, b, kb, source
+    _tie_given: list[tuple[Key, float, Key, float, Source]] = field(
+        default_factory=list, repr=False
+    )
+    _order_given: list[tuple[Key, float, Key, float, Source]] = field(
+        default_factory=list, repr=False
+    )
     # The same in key indices, in step with the lists above.
     _phase_a: list[int] = field(default_factory=list, repr=False)
     _phase_b: list[int] = field(default_factory=list, repr=False)
@@ -165,6 +173,30 @@ class Problem:
     def __post_init__(self) -> None:
         self._index(BLOCK_START)
 
+    @property
+    def phases(self) -> list[tuple[Key, Key, Phase, Source]]:
+        """Every phase as (earlier key, later key, phase, source), in add order."""
+        found: list[tuple[Key, Key, Phase, Source]] = []
+        for behaviour_id, syncs, phases, source, _ in self._chains:
+            keys = [(behaviour_id, sync) for sync in syncs]
+            found.extend(zip(keys, keys[1:], phases, itertools.repeat(source)))
+        return found
+
+    @property
+    def starts(self) -> list[Key]:
+        """The first key of every behaviour, in add order."""
+        return [(behaviour_id, syncs[0]) for behaviour_id, syncs, *_ in self._chains]
+
+    @property
+    def equalities(self) -> list[_Relation]:
+        """``t_a + ka == t_b + kb`` as given, in add order."""
+        return [_Relation(*given) for given in self._tie_given]
+
+    @property
+    def orderings(self) -> list[_Relation]:
+        """``t_a + ka <= t_b + kb`` as given, in add order."""
+        return [_Relation(*given) for given in self._order_given]
+
     def _index(self, key: Key) -> int:
         keys = self.keys
         index = keys.get(key)
@@ -177,19 +209,49 @@ class Problem:
         self, behaviour_id: str, syncs: tuple[str, ...], phases: Iterable[Phase], source: Source
     ) -> None:
         """A behaviour's sync points in order and the phases between them."""
-        keys = [(behaviour_id, sync) for sync in syncs]
         phases = tuple(phases)
-        if len(phases) != len(keys) - 1:
-            raise ValueError(f"{len(keys)} sync points need {len(keys) - 1} phases")
+        if len(phases) != len(syncs) - 1:
+            raise ValueError(f"{len(syncs)} sync points need {len(syncs) - 1} phases")
+        table = list(itertools.chain.from_iterable(map(_PHASE_FIELDS, phases)))
+        self._add(behaviour_id, tuple(syncs), phases, table, source)
+
+    def add_model(self, behaviour_id: str, model: TimingModel, source: Source) -> int:
+        """:meth:`add_behaviour` with a timing model's syncs and phases.
+
+        Returns the index of the behaviour's first key; when its keys are
+        new (the usual case) they are that index and the ones after it,
+        in the model's order (``model.positions``).
+        """
+        return self._add(behaviour_id, model.syncs, model.phases, model.table, source)
+
+    def _add(
+        self,
+        behaviour_id: str,
+        syncs: tuple[str, ...],
+        phases: tuple[Phase, ...],
+        table: Iterable[float],
+        source: Source,
+    ) -> int:
         chain = self._behaviours
         self._behaviours += 1
         known = self.keys
         first = len(known)
-        if known.keys().isdisjoint(keys) and len(set(keys)) == len(keys):
-            indices: list[int] = list(range(first, first + len(keys)))
-            known.update(zip(keys, indices, strict=True))
-            self._owner.extend([chain] * len(keys))
+        size = len(syncs)
+        keys = [(behaviour_id, sync) for sync in syncs]
+        fresh = known.keys().isdisjoint(keys)
+        if fresh:
+            known.update(zip(keys, range(first, first + size), strict=True))
+            fresh = len(known) == first + size  # else a key repeats within the behaviour
+            if not fresh:  # undo: all of them were new
+                for key in keys:
+                    known.pop(key, None)
+        if fresh:  # all new and distinct: consecutive indices
+            self._owner.extend([chain] * size)
             self._first[behaviour_id] = first
+            self._chains.append((behaviour_id, syncs, phases, source, first))
+            self._starts.append(first)
+            self._phase_a.extend(range(first, first + size - 1))
+            self._phase_b.extend(range(first + 1, first + size))
         else:  # known keys keep their place
             self._first.pop(behaviour_id, None)
             indices = [self._index(key) for key in keys]
@@ -198,26 +260,27 @@ class Problem:
                 if owner[index] >= 0 and owner[index] != chain:
                     self._links.append((owner[index], chain))
                 owner[index] = chain
-        self.starts.append(keys[0])
-        self._starts.append(indices[0])
-        self.phases.extend(zip(keys, keys[1:], phases, itertools.repeat(source)))
-        self._phase_a.extend(indices[:-1])
-        self._phase_b.extend(indices[1:])
-        self._phase_table.extend(itertools.chain.from_iterable(map(_PHASE_FIELDS, phases)))
+            self._chains.append((behaviour_id, syncs, phases, source, indices))
+            self._starts.append(indices[0])
+            self._phase_a.extend(indices[:-1])
+            self._phase_b.extend(indices[1:])
+            first = indices[0]
+        self._phase_table.extend(table)
+        return first
 
     def equal(self, a: Key, ka: float, b: Key, kb: float, source: Source) -> None:
         """``t_a + ka == t_b + kb``."""
         self._tie_a.append(self._index(a))
         self._tie_b.append(self._index(b))
         self._tie_d.append(kb - ka)
-        self.equalities.append(_Relation(a, ka, b, kb, source))
+        self._tie_given.append((a, ka, b, kb, source))
 
     def order(self, a: Key, ka: float, b: Key, kb: float, source: Source) -> None:
         """``t_a + ka <= t_b + kb``."""
         self._order_lower.append(self._index(a))
         self._order_upper.append(self._index(b))
         self._order_min.append(ka - kb)
-        self.orderings.append(_Relation(a, ka, b, kb, source))
+        self._order_given.append((a, ka, b, kb, source))
 
     def fix(self, key: Key, time: float, source: Source) -> None:
         """``t_key == time`` (seconds after the block start)."""
@@ -503,9 +566,10 @@ def _sparse_times(problem: Problem) -> list[float]:
 def _row_source(problem: Problem, stretchy: list[bool], row: int) -> Source:
     """The source of inequality row ``row`` of :func:`solve_sparse`'s list:
     orderings, phase minima, finite phase maxima, then t >= 0."""
-    if row < len(problem.orderings):
-        return problem.orderings[row].source
-    row -= len(problem.orderings)
+    orderings = problem._order_given
+    if row < len(orderings):
+        return orderings[row][4]
+    row -= len(orderings)
     phase_sources = [source for _, _, _, source in problem.phases]
     if row < len(phase_sources):
         return phase_sources[row]

@@ -10,8 +10,9 @@ parabola as a preferred duration and a weight (``a = weight``,
 
 from __future__ import annotations
 
+import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from realizer.errors import RealizerError
 
@@ -55,6 +56,12 @@ class TimingModel:
 
     syncs: tuple[str, ...]
     phases: tuple[Phase, ...]
+    #: weight, preferred, minimum and maximum of each phase, one after the
+    #: other: what the solver reads, made once per model rather than once
+    #: per behaviour planned (engines hand out one model for many behaviours)
+    table: tuple[float, ...] = field(init=False, repr=False, compare=False)
+    #: each sync point's position in :attr:`syncs`
+    positions: dict[str, int] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if len(self.phases) != len(self.syncs) - 1:
@@ -62,6 +69,13 @@ class TimingModel:
                 f"{len(self.syncs)} sync points need {len(self.syncs) - 1} phases, "
                 f"not {len(self.phases)}"
             )
+        table = tuple(
+            itertools.chain.from_iterable(
+                (p.weight, p.preferred, p.minimum, p.maximum) for p in self.phases
+            )
+        )
+        object.__setattr__(self, "table", table)
+        object.__setattr__(self, "positions", {s: i for i, s in enumerate(self.syncs)})
 
     @property
     def preferred_duration(self) -> float:
