@@ -96,24 +96,48 @@ def outcome(text: str) -> object:
     )
 
 
+def same_outcome(first: object, second: object) -> None:
+    if isinstance(second, tuple) and second[0] == "failed":
+        assert first == second
+        return
+    assert isinstance(first, tuple) and isinstance(second, tuple)
+    first_times, second_times = first[0], second[0]
+    assert isinstance(first_times, dict) and isinstance(second_times, dict)
+    assert first[1:] == second[1:]  # the same behaviours dropped, the same warnings
+    assert first_times.keys() == second_times.keys()
+    for behaviour, times in second_times.items():
+        assert first_times[behaviour] == pytest.approx(times, abs=1e-6), behaviour
+
+
 @pytest.mark.parametrize("seed", range(120))
-def test_dense_and_sparse_paths_schedule_random_blocks_alike(
+def test_tiny_dense_and_sparse_paths_schedule_random_blocks_alike(
     seed: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     text = random_block(seed)
+    tiny = outcome(text)  # the tiny path where it takes the problem, else dense
+    monkeypatch.setattr(solver, "TINY_KEYS", -1)  # numpy only
     dense = outcome(text)
     monkeypatch.setattr(solver, "DENSE_KEYS", -1)  # every problem takes the sparse path
     sparse = outcome(text)
-    if isinstance(sparse, tuple) and sparse[0] == "failed":
-        assert dense == sparse
-        return
-    assert isinstance(dense, tuple) and isinstance(sparse, tuple)
-    dense_times, sparse_times = dense[0], sparse[0]
-    assert isinstance(dense_times, dict) and isinstance(sparse_times, dict)
-    assert dense[1:] == sparse[1:]  # the same behaviours dropped, the same warnings
-    assert dense_times.keys() == sparse_times.keys()
-    for behaviour, times in sparse_times.items():
-        assert dense_times[behaviour] == pytest.approx(times, abs=1e-6), behaviour
+    same_outcome(dense, sparse)
+    same_outcome(tiny, dense)
+
+
+def test_the_tiny_path_schedules_most_random_blocks() -> None:
+    taken = 0
+    original = solver._tiny_times
+
+    def counted(problem: solver.Problem) -> list[float] | None:
+        nonlocal taken
+        times = original(problem)
+        taken += times is not None
+        return times
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(solver, "_tiny_times", counted)
+        for seed in range(120):
+            outcome(random_block(seed))
+    assert taken > 40
 
 
 def test_random_blocks_hold_what_the_comparison_needs() -> None:

@@ -95,10 +95,11 @@ def test_both_paths_ran_feasible_and_infeasible_problems_with_active_rows() -> N
     assert feasible > 200 and infeasible > 10 and leaning > 20
 
 
-def test_solve_takes_the_dense_path_for_small_problems_and_sparse_for_big(
+def test_solve_tries_the_tiny_path_then_dense_for_small_problems_and_sparse_for_big(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     taken: list[str] = []
+    monkeypatch.setattr(solver, "_tiny_times", lambda p: taken.append("tiny"))  # declines
     monkeypatch.setattr(solver, "solve_dense", lambda p: taken.append("dense") or {})
     monkeypatch.setattr(solver, "solve_sparse", lambda p: taken.append("sparse") or {})
     small, big = Problem(), Problem()
@@ -107,5 +108,93 @@ def test_solve_takes_the_dense_path_for_small_problems_and_sparse_for_big(
         big.add_behaviour(f"b{i}", ("start", "end"), [Phase(1.0)], Source("behaviour", f"b{i}"))
     solver.solve(small)
     solver.solve(big)
-    assert taken == ["dense", "sparse"]
+    assert taken == ["tiny", "dense", "sparse"]
     assert BLOCK_START in small.keys
+
+
+# -- the pure-Python path for tiny problems ------------------------------------------
+
+
+def pinned_problem(seed: int) -> Problem:
+    """A random problem whose every behaviour is tied to the block start.
+
+    The behaviours of :func:`random_problem`, each started at a fixed time
+    or at a point of an earlier one, and orderings between random points.
+    With no free group, the tiny path also runs its active-set method
+    (beside free groups it leaves active inequalities to numpy), so these
+    problems are where its orderings and squeezed phases are tested.
+    """
+    chance = random.Random(seed)
+    problem = Problem()
+    keys: list[tuple[str, str]] = []
+    for behaviour_id, syncs, phases, source, _ in random_problem(seed)._chains:
+        problem.add_behaviour(behaviour_id, syncs, phases, source)
+        start = (behaviour_id, syncs[0])
+        if keys and chance.random() < 0.6:
+            problem.equal(start, 0.0, chance.choice(keys), round(chance.uniform(0.0, 0.6), 3),
+                          source)  # fmt: skip
+        else:
+            problem.fix(start, round(chance.uniform(0.0, 2.0), 3),
+                        Source("fixed", behaviour_id, True))  # fmt: skip
+        keys += [(behaviour_id, sync) for sync in syncs]
+    for index in range(chance.randint(1, 5) if len(keys) > 2 else 0):
+        a, b = chance.sample(keys, 2)
+        problem.order(a, round(chance.uniform(-0.3, 1.0), 3), b, 0.0,
+                      Source("constraint", f"order{index}"))  # fmt: skip
+    return problem
+
+
+@pytest.mark.parametrize("make", [random_problem, pinned_problem])
+@pytest.mark.parametrize("seed", range(300))
+def test_the_tiny_path_gives_the_dense_paths_times_or_declines(seed: int, make: object) -> None:
+    problem = make(seed)  # type: ignore[operator]
+    dense = outcome(solver.solve_dense, problem)
+    tiny = solver.solve_tiny(problem)
+    if isinstance(dense, frozenset):
+        assert tiny is None  # conflicts are named by the numpy path
+        return
+    if tiny is None:
+        return
+    assert tiny.keys() == dense.keys()
+    for key, time in dense.items():
+        assert tiny[key] == pytest.approx(time, abs=1e-6), key
+
+
+def test_the_tiny_path_took_most_feasible_problems_with_active_rows_and_squeezed_phases() -> None:
+    taken = leaning = squeezed = feasible = 0
+    for seed in range(300):
+        for make in (random_problem, pinned_problem):
+            problem = make(seed)
+            if isinstance(outcome(solver.solve_dense, problem), frozenset):
+                continue
+            feasible += 1
+            tiny = solver.solve_tiny(problem)
+            if tiny is None:
+                continue
+            taken += 1
+            leaning += any(
+                abs(tiny[r.b] + r.kb - tiny[r.a] - r.ka) < 1e-7 for r in problem.orderings
+            )
+            squeezed += any(
+                abs(tiny[b] - tiny[a] - phase.minimum) < 1e-7 < phase.preferred - phase.minimum
+                for a, b, phase, _ in problem.phases
+            )
+    assert taken > feasible // 3 and leaning > 30 and squeezed > 20, (taken, leaning, squeezed)
+
+
+def test_a_chain_held_at_its_ends_is_one_spring_in_series() -> None:
+    phases = (Phase(0.5, 2.0), Phase(1.0, 0.5), Phase(0.3, 1.0, 0.1, 0.6), Phase(0.2))
+    kept, springs, inner, checked = solver._chain_plan(phases, (3,))
+    assert kept == (0, 3)
+    ((u, v, length, weight, low, high),) = springs
+    assert (u, v) == (0, 3) and length == pytest.approx(1.8)
+    assert weight == pytest.approx(1 / (1 / 2.0 + 1 / 0.5 + 1 / 1.0))
+    assert (low, high) == (pytest.approx(0.1), math.inf)
+    # inner points share the stretch by compliance; the tail keeps its length
+    assert inner[0][:3] == (1, 0, 3) and inner[0][3] == pytest.approx(0.5)
+    assert inner[0][4] == pytest.approx(0.5 / 3.5)
+    assert inner[-1][:3] == (4, 3, -1) and inner[-1][3] == pytest.approx(0.2)
+    assert checked == (0, 1, 2, 3)
+    assert solver._chain_plan(phases, (3,)) is solver._chain_plan(phases, (3,))  # cached
+    rigid = (Phase(0.5), Phase(0.4, 1.0, 0.4, 0.4), Phase(0.5))
+    assert solver._chain_plan(rigid, ())[0] == (0, 1, 2)  # a rigid phase is a tie: kept
