@@ -225,13 +225,17 @@ class _Builder:
         record = self.record
         self.edges = []
         self.pinned = set()
-        models, target = self.models, self.target
+        models, target, equal = self.models, self.target, problem.equal
         for behaviour in block.behaviours:
             behaviour_id = behaviour.id
             model = models.get(behaviour_id)
             if model is None or behaviour_id in skip:
                 continue
-            source = self._source("behaviour", behaviour_id, behaviour.required)
+            source = (
+                self._source("behaviour", behaviour_id, behaviour.required)
+                if record
+                else Source("behaviour", behaviour_id, behaviour.required)
+            )
             problem.add_model(behaviour_id, model, source)
             if record:
                 self._phase_edges(behaviour_id, model, source)
@@ -240,16 +244,34 @@ class _Builder:
                 refs = [*refs, *((r.id, r.ref) for r in behaviour.speech.runs
                                  if not isinstance(r, str) and r.ref is not None)]  # fmt: skip
             for sync, ref in refs:
-                found = target(ref, behaviour_id)
-                if found is None or (found[0][0] in skip):
-                    continue
+                # The usual reference, a sync point of a behaviour of this
+                # block (or a time), is resolved here; target() does the rest
+                # and warns.
+                name = ref.behaviour
+                found: tuple[Key, float] | None
+                if name is None:
+                    found = BLOCK_START, ref.offset
+                elif (
+                    ref.block is None
+                    and ref.iteration is None
+                    and name != "bml"
+                    and (other := models.get(name)) is not None
+                    and ref.sync in other.positions
+                ):
+                    found = (name, ref.sync), ref.offset
+                else:
+                    found = target(ref, behaviour_id)
+                    if found is None:
+                        continue
                 key, offset = found
+                if skip and key[0] in skip:
+                    continue
                 # t_sync = t_target + offset
                 if record:
                     self.equal(problem, (behaviour_id, sync), 0.0, key, offset, source,
                                f'{behaviour_id} {sync}="{ref.raw.strip()}"')  # fmt: skip
                 else:
-                    problem.equal((behaviour_id, sync), 0.0, key, offset, source)
+                    equal((behaviour_id, sync), 0.0, key, offset, source)
         for index, constraint in enumerate(block.constraints):
             source = self._source("constraint", constraint.id or f"#{index + 1}",
                                   constraint.required)  # fmt: skip

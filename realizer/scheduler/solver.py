@@ -270,8 +270,11 @@ class Problem:
 
     def equal(self, a: Key, ka: float, b: Key, kb: float, source: Source) -> None:
         """``t_a + ka == t_b + kb``."""
-        self._tie_a.append(self._index(a))
-        self._tie_b.append(self._index(b))
+        keys = self.keys
+        index = keys.get(a)
+        self._tie_a.append(self._index(a) if index is None else index)
+        index = keys.get(b)
+        self._tie_b.append(self._index(b) if index is None else index)
         self._tie_d.append(kb - ka)
         self._tie_given.append((a, ka, b, kb, source))
 
