@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from realizer.face.animation import Animation, DerivedAnimation, FloatArray
+
 #: The parameters a parameter value change may move.
 CHANGEABLE = ("amount", "volume")
 
@@ -45,35 +47,19 @@ class Ramp:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class ScaledAnimation:
+class ScaledAnimation(DerivedAnimation):
     """An animation whose FAP values are multiplied by ``ramp`` (over time).
 
     Before the ramp starts it is the animation itself (factor ``ramp.initial``
     is 1 when the change starts from the behaviour's own amount).
     """
 
-    base: Any
+    base: Animation
     ramp: Ramp
 
-    @property
-    def start(self) -> float:
-        return float(self.base.start)
-
-    @property
-    def end(self) -> float:
-        return float(self.base.end)
-
-    @property
-    def priority(self) -> int:
-        return int(self.base.priority)
-
-    @property
-    def blend(self) -> str:
-        return str(getattr(self.base, "blend", "add"))
-
-    def evaluate(self, now: float) -> tuple[Any, Any]:
+    def evaluate(self, now: float) -> tuple[FloatArray, FloatArray]:
         values, weights = self.base.evaluate(now)
-        return np.asarray(values) * self.ramp.at(now), weights
+        return np.asarray(values, dtype=np.float64) * self.ramp.at(now), weights
 
 
 def scaled_clip(clip: Any, ramp: Ramp) -> Any:
@@ -91,29 +77,13 @@ def scaled_clip(clip: Any, ramp: Ramp) -> Any:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class Window:
-    """An animation shown only from ``start`` (seconds): a gaze re-aimed at a
+class Window(DerivedAnimation):
+    """An animation shown only from ``from_time`` (seconds): a gaze re-aimed at a
     target that moved takes over from the old one at that moment (a saccade)."""
 
-    base: Any
+    base: Animation
     from_time: float
 
     @property
     def start(self) -> float:
         return max(float(self.base.start), self.from_time)
-
-    @property
-    def end(self) -> float:
-        return float(self.base.end)
-
-    @property
-    def priority(self) -> int:
-        return int(self.base.priority)
-
-    @property
-    def blend(self) -> str:
-        return str(getattr(self.base, "blend", "add"))
-
-    def evaluate(self, now: float) -> tuple[Any, Any]:
-        values, weights = self.base.evaluate(now)
-        return values, weights

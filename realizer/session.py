@@ -135,7 +135,7 @@ class _Record:
     #: the parsed block, to plan it again (a preplanned block when activated)
     result: ParseResult | None = None
     #: behaviour id -> its animations (for BMLA interrupts and value changes)
-    owned: dict[str, list[Any]] = field(default_factory=dict)
+    owned: dict[str, list[Animation]] = field(default_factory=dict)
     #: BMLA control behaviours of the block (activate, interrupt,
     #: parameterValueChange): behaviour id -> behaviour, acted on at its start
     controls: dict[str, Any] = field(default_factory=dict)
@@ -172,9 +172,9 @@ class PlannedBlock:
     plan: TimedPlan | None = None
     predicted: Feedback | None = None
     events: list[_Event] = field(default_factory=list)
-    animations: list[Any] = field(default_factory=list)
-    audio: list[Any] = field(default_factory=list)
-    owned: dict[str, list[Any]] = field(default_factory=dict)
+    animations: list[Animation] = field(default_factory=list)
+    audio: list[AudioClip] = field(default_factory=list)
+    owned: dict[str, list[Animation]] = field(default_factory=dict)
     engine_notes: int = 0  # warnings of the engines (refuse the block in strict mode)
 
 
@@ -388,9 +388,9 @@ class Session:
             )
             if block.control.preplan:
                 events: list[_Event] = []
-                animations: list[Any] = []
-                audio: list[Any] = []
-                owned: dict[str, list[Any]] = {}
+                animations: list[Animation] = []
+                audio: list[AudioClip] = []
+                owned: dict[str, list[Animation]] = {}
             else:
                 events = _events(plan, 0)
                 animations, audio, owned = self._realize(plan, notes, now)
@@ -555,12 +555,12 @@ class Session:
 
     def _realize(
         self, plan: TimedPlan, notes: list[Feedback] | None = None, now: float | None = None
-    ) -> tuple[list[Any], list[Any], dict[str, list[Any]]]:
+    ) -> tuple[list[Animation], list[AudioClip], dict[str, list[Animation]]]:
         """The animations, audio clips and animations by behaviour of a solved
         plan; warnings go to ``notes`` (at ``now``) when given, else are queued."""
-        animations: list[Any] = []
-        audio: list[Any] = []
-        owned: dict[str, list[Any]] = {}
+        animations: list[Animation] = []
+        audio: list[AudioClip] = []
+        owned: dict[str, list[Animation]] = {}
         for scheduled in plan.behaviours:
             if scheduled.id in plan.unrealized:
                 continue
@@ -637,7 +637,7 @@ class Session:
                 if realized is None:
                     continue
                 old = {id(a) for a in record.owned.get(scheduled.id, ())}
-                new: list[Any] = [
+                new: list[Animation] = [
                     Window(a, now) for a in getattr(realized, "parts", None) or (realized,)
                 ]
                 record.animations = [
@@ -733,7 +733,7 @@ class Session:
             ]
             return
         changed = {id(a) for a in owner.owned.get(behaviour_id, ())}
-        replaced: list[Any] = []
+        replaced: list[Animation] = []
         for animation in owner.animations:
             replaced.append(
                 ScaledAnimation(animation, ramp) if id(animation) in changed else animation

@@ -29,3 +29,40 @@ class Animation(Protocol):
     @property
     def priority(self) -> int: ...
     def evaluate(self, now: float) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class DerivedAnimation:
+    """An animation made from another, ``base``: ``start``, ``end``,
+    ``priority``, ``blend`` and ``evaluate`` are the base's unless a subclass
+    (a frozen, slotted dataclass with a ``base`` field) changes one.
+
+    What the mixer's wrappers share: an interrupted animation
+    (:class:`realizer.face.tracks.InterruptedAnimation`), one whose values a
+    BMLA parameter change scales or one shown from a later moment
+    (:mod:`realizer.control`).
+    """
+
+    __slots__ = ()
+    base: Animation
+
+    @property
+    def start(self) -> float:
+        return self.base.start
+
+    @property
+    def end(self) -> float:
+        return self.base.end
+
+    @property
+    def priority(self) -> int:
+        return self.base.priority
+
+    @property
+    def blend(self) -> str:
+        return str(getattr(self.base, "blend", "add"))
+
+    def evaluate(self, now: float) -> tuple[FloatArray, FloatArray]:
+        return self.base.evaluate(now)

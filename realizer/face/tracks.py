@@ -43,7 +43,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from realizer.face.animation import Animation
+from realizer.face.animation import Animation, DerivedAnimation
 from realizer.face.convert.config import FAP_COUNT, FapConfiguration
 from realizer.face.convert.errors import ConversionError
 
@@ -299,7 +299,7 @@ class KeyframeAnimation:
 
 
 @dataclass(frozen=True, slots=True, eq=False)
-class InterruptedAnimation:
+class InterruptedAnimation(DerivedAnimation):
     """An animation stopped at ``at`` (seconds): it holds its values from that
     moment and fades its weights to 0 over ``release`` seconds with ``curve``.
 
@@ -313,20 +313,8 @@ class InterruptedAnimation:
     curve: CurveKind = "hermite"
 
     @property
-    def start(self) -> float:
-        return self.base.start
-
-    @property
     def end(self) -> float:
         return min(self.base.end, self.at + self.release)
-
-    @property
-    def priority(self) -> int:
-        return self.base.priority
-
-    @property
-    def blend(self) -> str:
-        return str(getattr(self.base, "blend", "add"))
 
     def evaluate(self, now: float) -> tuple[FloatArray, FloatArray]:
         if now <= self.at:
