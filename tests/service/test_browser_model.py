@@ -13,7 +13,7 @@ import pytest
 
 from realizer.face.deform import deform
 from tests.face.test_gpu_model import TOLERANCE_M, random_vectors
-from tests.service.browser import CHROMIUM, CHROMIUM_ARGS, chromium_missing, service_in_thread
+from tests.service.browser import chromium_on_service
 from tests.service.conftest import UNIT
 from tests.service.test_end_to_end import real_assets, real_face, real_sessions
 
@@ -43,25 +43,13 @@ EVALUATE = """async (vectors) => {
 
 @pytest.mark.slow
 def test_the_shader_and_the_javascript_deform_like_the_server() -> None:
-    reason = chromium_missing()
-    if reason:
-        pytest.skip(reason)
-    from playwright.sync_api import sync_playwright
-
     face = real_face()
     vectors = random_vectors(4, seed=11)
-    with (
-        service_in_thread(real_sessions(), real_assets()) as service,
-        sync_playwright() as playwright,
-    ):
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        try:
-            page = browser.new_page()
-            page.set_default_timeout(60_000 * UNIT)
-            page.goto(f"http://127.0.0.1:{service.port}/health")
-            result: dict[str, Any] = page.evaluate(EVALUATE, [v.tolist() for v in vectors])
-        finally:
-            browser.close()
+    with chromium_on_service(real_sessions(), real_assets()) as (service, browser):
+        page = browser.new_page()
+        page.set_default_timeout(60_000 * UNIT)
+        page.goto(f"http://127.0.0.1:{service.port}/health")
+        result: dict[str, Any] = page.evaluate(EVALUATE, [v.tolist() for v in vectors])
     assert result["gpu"] is not None, "headless Chromium gave no WebGL2 context"
     for vector, gpu, cpu in zip(vectors, result["gpu"], result["cpu"], strict=True):
         expected = deform(face, vector)

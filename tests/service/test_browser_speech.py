@@ -5,14 +5,12 @@ while the character speaks."""
 
 from __future__ import annotations
 
-import io
 import os
-from typing import Any
 
 import numpy as np
 import pytest
 
-from tests.service.browser import CHROMIUM, CHROMIUM_ARGS, chromium_missing, service_in_thread
+from tests.service.browser import canvas, chromium_on_service, patch
 from tests.service.conftest import UNIT
 from tests.service.test_end_to_end import real_assets, real_face, real_sessions
 
@@ -27,86 +25,64 @@ SPEECH = """<bml xmlns="http://www.bml-initiative.org/bml/bml-1.0" id="hello">
 SYNC_MS = 45.0
 
 
-def mouth_patch(image: np.ndarray, centre: tuple[float, float], radius: int) -> np.ndarray:
-    x, y = round(centre[0]), round(centre[1])
-    return image[max(0, y - radius) : y + radius, max(0, x - radius) : x + radius]
-
-
 @pytest.mark.slow
 def test_the_viewer_plays_a_speech_in_sync_and_the_mouth_moves() -> None:
-    reason = chromium_missing()
-    if reason:
-        pytest.skip(reason)
-    from PIL import Image
-    from playwright.sync_api import sync_playwright
-
-    def canvas(page: Any) -> np.ndarray:
-        png = page.locator("#face").screenshot()
-        return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=np.int16)
-
     timeout = 60_000 * UNIT
     points = real_face().params.feature_points
-    with (
-        service_in_thread(real_sessions(), real_assets(), fps=25.0) as service,
-        sync_playwright() as playwright,
-    ):
-        browser = playwright.chromium.launch(
-            executable_path=CHROMIUM,
-            args=[*CHROMIUM_ARGS, "--autoplay-policy=no-user-gesture-required"],
+    with chromium_on_service(
+        real_sessions(),
+        real_assets(),
+        fps=25.0,
+        args=("--autoplay-policy=no-user-gesture-required",),
+    ) as (service, browser):
+        page = browser.new_page(viewport={"width": 1100, "height": 800})
+        page.goto(f"http://127.0.0.1:{service.port}/?character=Zoe")
+        page.wait_for_function(
+            "window.realizerViewer.gpu && window.realizerViewer.frames > 3", timeout=timeout
         )
+        page.click("#sound")
+        page.wait_for_function(
+            "window.realizerViewer.audio?.context.state === 'running'",
+            timeout=timeout,
+        )
+        neutral = canvas(page)
+        mouth = page.evaluate(
+            "([x, y, z]) => window.realizerViewer.project(x, y, z)", list(points["2.2"])
+        )
+        eye = page.evaluate(
+            "([x, y, z]) => window.realizerViewer.project(x, y, z)", list(points["3.5"])
+        )
+        page.fill("#bml", SPEECH)
+        page.click("#send")
         try:
-            page = browser.new_page(viewport={"width": 1100, "height": 800})
-            page.goto(f"http://127.0.0.1:{service.port}/?character=Zoe")
-            page.wait_for_function(
-                "window.realizerViewer.gpu && window.realizerViewer.frames > 3", timeout=timeout
-            )
-            page.click("#sound")
-            page.wait_for_function(
-                "window.realizerViewer.audio?.context.state === 'running'",
-                timeout=timeout,
-            )
-            neutral = canvas(page)
-            mouth = page.evaluate(
-                "([x, y, z]) => window.realizerViewer.project(x, y, z)", list(points["2.2"])
-            )
-            eye = page.evaluate(
-                "([x, y, z]) => window.realizerViewer.project(x, y, z)", list(points["3.5"])
-            )
-            page.fill("#bml", SPEECH)
-            page.click("#send")
-            try:
-                page.wait_for_function(
-                    "window.realizerViewer.audio.played > 3", timeout=20_000 * UNIT
-                )
-            except Exception:
-                if not page.evaluate("window.realizerViewer.audioChunks || 0"):
-                    pytest.skip("the service sends no speech audio (no audio stream here)")
-                raise
-            page.wait_for_function("window.realizerViewer.lastFrame.faps > 3", timeout=timeout)
-            changes = []
-            for _ in range(8):  # the mouth opens and closes while it speaks
-                if not page.evaluate("window.realizerViewer.lastFrame.faps > 3"):
-                    break  # the speech ended (a slow machine takes few screenshots)
-                changes.append(canvas(page))
-                page.wait_for_timeout(120)
-            # audio against picture: when the sample of server time t is heard, and when the
-            # frame showing t was drawn
-            offsets = page.evaluate(
-                """() => {
-                  const v = window.realizerViewer, out = [];
-                  for (const d of v.drawn) {
-                    const heard = v.audio.heardAt(d.t);
-                    if (heard !== null) out.push(heard - d.at);
-                  }
-                  return out;
-                }"""
-            )
-            played = page.evaluate("window.realizerViewer.audio.played")
-        finally:
-            browser.close()
+            page.wait_for_function("window.realizerViewer.audio.played > 3", timeout=20_000 * UNIT)
+        except Exception:
+            if not page.evaluate("window.realizerViewer.audioChunks || 0"):
+                pytest.skip("the service sends no speech audio (no audio stream here)")
+            raise
+        page.wait_for_function("window.realizerViewer.lastFrame.faps > 3", timeout=timeout)
+        changes = []
+        for _ in range(8):  # the mouth opens and closes while it speaks
+            if not page.evaluate("window.realizerViewer.lastFrame.faps > 3"):
+                break  # the speech ended (a slow machine takes few screenshots)
+            changes.append(canvas(page))
+            page.wait_for_timeout(120)
+        # audio against picture: when the sample of server time t is heard, and when the
+        # frame showing t was drawn
+        offsets = page.evaluate(
+            """() => {
+              const v = window.realizerViewer, out = [];
+              for (const d of v.drawn) {
+                const heard = v.audio.heardAt(d.t);
+                if (heard !== null) out.push(heard - d.at);
+              }
+              return out;
+            }"""
+        )
+        played = page.evaluate("window.realizerViewer.audio.played")
     differences = [np.abs(c - neutral).sum(axis=2) for c in changes]
-    at_mouth = [float(mouth_patch(d, mouth, 25).mean()) for d in differences]
-    at_eye = [float(mouth_patch(d, eye, 15).mean()) for d in differences]
+    at_mouth = [float(patch(d, mouth, 25).mean()) for d in differences]
+    at_eye = [float(patch(d, eye, 15).mean()) for d in differences]
     assert max(at_mouth) > 3.0, at_mouth
     assert max(at_mouth) > 2 * max(at_eye) + 0.5
     assert len(changes) >= 2
