@@ -11,6 +11,7 @@ picks another).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -37,7 +38,13 @@ def parse_fap_assignments(text: str) -> npt.NDArray[np.float64]:
         number = int(key) if key.isdigit() else by_name.get(key, 0)
         if not 1 <= number <= 68:
             raise ValueError(f"unknown FAP {key!r}")
-        vector[number - 1] = float(value)
+        try:
+            number_value = float(value)
+        except ValueError:
+            number_value = math.nan
+        if not math.isfinite(number_value):
+            raise ValueError(f"FAP {key}: {value!r} is not a finite number")
+        vector[number - 1] = number_value
     return vector
 
 

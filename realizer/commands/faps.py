@@ -114,10 +114,18 @@ def record_block(text: str | bytes, fps: float, max_seconds: float) -> BlockReco
 
 def recording_for(args: Any, command: str) -> BlockRecording | None:
     """Record ``args.file`` for ``realizer COMMAND``; report problems on stderr."""
+    from realizer.bml_parser import BmlError, parse_bml
     from realizer.errors import RealizerError
 
     try:
-        recording = record_block(args.file.read_bytes(), args.fps, args.max_seconds)
+        data = args.file.read_bytes()
+        # A file that is no BML reads as every command's parse error
+        # (path:line:col: error: ...), not as an empty recording.
+        parse_bml(data, source=str(args.file))
+        recording = record_block(data, args.fps, args.max_seconds)
+    except BmlError as error:
+        print(str(error), file=sys.stderr)
+        return None
     except ImportError:  # a missing extra: the command line names it
         raise
     except (OSError, ValueError, RealizerError) as error:

@@ -130,6 +130,14 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, OSError, UnicodeDecodeError, RealizerError) as exc:
         print(error_line("render", exc), file=sys.stderr)
         return 2
+    if recorded is None:
+        from realizer.bml_parser import BmlError, parse_bml
+
+        try:  # a block that does not parse is refused: said as every command says it
+            parse_bml(text, source=str(args.file))
+        except BmlError as exc:
+            print(str(exc), file=sys.stderr)
+            return 1
     video = args.output.suffix.lower() in VIDEO_SUFFIXES
     if video and shutil.which("ffmpeg") is None:
         print("realizer render: ffmpeg is not installed (scripts/setup.sh)", file=sys.stderr)
