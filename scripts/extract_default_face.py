@@ -56,6 +56,7 @@ import dataclasses
 import gzip
 import io
 import itertools
+import math
 import subprocess
 import sys
 import zipfile
@@ -955,6 +956,179 @@ def mouth_inside(head: HeadMesh, lip_contours: IntArray, lower_inner: int) -> In
     return pocket
 
 
+#: Opening the jaw: how far back the chin (2.1) goes per unit it goes down.
+#: The jaw turns about its joint while the joint glides forward, so the chin
+#: goes mostly down; the artist's jawOpen alone took it back 1.3 mm per mm.
+JAW_BACK_PER_DOWN = 0.4
+
+
+def jaw_tables(shapes: dict[str, FloatArray], chin: int, still: IntArray) -> list[Any]:
+    """FaceDefMesh tables of open_jaw (3), thrust_jaw (14) and shift_jaw (15)
+    from the artist's jawOpen, jawForward and jawRight (metres, (n, 3)), each
+    scaled so that 2.1 (vertex ``chin``) moves one FAPU per unit along the
+    FAP's axis. jawOpen gets as much jawForward added as takes the chin back
+    JAW_BACK_PER_DOWN of its drop (the joint's forward glide); jawRight loses
+    the jawForward that took the chin 4 mm forward at 128 MW, so shifting the
+    jaw moves the chin sideways (and a little up or down) only."""
+    opening, forward, shift = shapes["jawOpen"], shapes["jawForward"], shapes["jawRight"]
+    # z(open + a fwd) = r * y(open + a fwd): the chin goes back r per unit down
+    r = JAW_BACK_PER_DOWN
+    a = (r * opening[chin, 1] - opening[chin, 2]) / (forward[chin, 2] - r * forward[chin, 1])
+    opening = opening + a * forward
+    shift = shift - (shift[chin, 2] / forward[chin, 2]) * forward
+    tables = []
+    for fap, shape, axis in (
+        (3, opening, (0.0, -1.0, 0.0)),
+        (14, forward, (0.0, 0.0, 1.0)),
+        (15, shift, (-1.0, 0.0, 0.0)),
+    ):
+        per_unit = shape / float(shape[chin] @ np.asarray(axis))
+        per_unit[still] = 0.0
+        moved = np.flatnonzero(np.linalg.norm(shape, axis=1) > 1e-5)
+        tables.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], np.setdiff1d(moved, still)))
+    return tables
+
+
+def side_share(x: FloatArray, sign: float, width: float) -> FloatArray:
+    """How much of a symmetric shape belongs to one side (``sign`` +1: the
+    face's left, +x): 1 beyond ``width`` on that side, 0 beyond it on the
+    other, a raised cosine across the midline."""
+    t = np.clip(sign * x / width, -1.0, 1.0)
+    out: FloatArray = 0.5 + 0.5 * np.sin(0.5 * np.pi * t)
+    return out
+
+
+def fade_in(distance: FloatArray, clear: tuple[float, float]) -> FloatArray:
+    """0 closer than ``clear[0]``, 1 beyond ``clear[1]``, a raised cosine between."""
+    t = np.clip((distance - clear[0]) / (clear[1] - clear[0]), 0.0, 1.0)
+    out: FloatArray = 0.5 - 0.5 * np.cos(np.pi * t)
+    return out
+
+
+#: Cheek puff (39, 40): the share of forward motion per unit of sideways
+#: motion (the puffed cheek bulges along its normal, which faces forward).
+CHEEK_PUFF_FORWARD = 1.0
+CHEEK_CORNER_CLEAR_M = (0.002, 0.016)
+#: ... and the puff fades out towards the lips' inner contour between these distances.
+CHEEK_LIP_CLEAR_M = (0.003, 0.02)
+
+
+def cheek_tables(
+    v: FloatArray,
+    faces: IntArray,
+    shapes: dict[str, FloatArray],
+    points: dict[str, int],
+    keep: IntArray,
+    inside: IntArray,
+) -> list[Any]:
+    """Cheek puff (39, 40) and lift (41, 42) as FaceDefMesh tables from the
+    artist's cheekPuff and cheekSquint* (spheres made a small bump beside the
+    lip corner and a seam at the nose wing).
+
+    Puff: cheekPuff's footprint (the length of its offsets, which swells
+    smoothly over the cheek and fades out at the nose, lips and jaw; one
+    side's share by side_share) in the direction (1, 0, CHEEK_PUFF_FORWARD)
+    mirrored per side: 5.1 (5.2) moves one ES per unit sideways, the cheek a
+    convex bulge. The target's own direction at 5.1 is 7 parts forward to 1
+    sideways, which at one ES per unit sideways would swell 7 ES forward.
+    Lift: cheekSquint* as sculpted (the cheek rises and narrows the eye from
+    below, AU 6), 5.3 (5.4) rising one ES per unit. Negative values follow
+    the same paths back."""
+    from realizer.face import render
+
+    tables = []
+    puff = np.linalg.norm(shapes["cheekPuff"], axis=1)
+    width = 0.5 * abs(float(v[points["9.1"], 0] - v[points["9.2"], 0]))
+    normals = render.vertex_normals(v, faces).astype(np.float64)
+    for fap, point, sign in ((39, "5.1", 1.0), (40, "5.2", -1.0)):
+        k = points[point]
+        # the lips stay sealed (the pinched skin at the corner folded over at
+        # 30 ES as the lips went forward with the cheek, and the lower lip's
+        # inner edge at -96 as they went back)
+        lips = v[[points[f"2.{i}"] for i in range(2, 10)]]
+        near = np.linalg.norm(v[:, None, :] - lips[None], axis=2).min(axis=1)
+        field = puff * side_share(v[:, 0], sign, width) * fade_in(near, CHEEK_LIP_CLEAR_M)
+        field /= field[k]
+        # one ES per unit outwards at 5.1 (the FAP's axis: left, or right for
+        # 40), sideways only where the skin faces that way (beside the nose
+        # and lips it faces the midline: a sideways push there dented it)
+        out = np.clip(sign * normals[:, 0] / (sign * normals[k, 0]), 0.0, 1.0)
+        per_unit = field[:, None] * np.stack(
+            [sign * out, np.zeros_like(out), np.full_like(out, CHEEK_PUFF_FORWARD)], axis=1
+        )
+        moved = np.setdiff1d(np.intersect1d(keep, np.flatnonzero(field > 1e-4)), inside)
+        tables.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], moved))
+    for fap, point, corner, name in (
+        (41, "5.3", "3.7", "cheekSquintLeft"),
+        (42, "5.4", "3.12", "cheekSquintRight"),
+    ):
+        # the skin by the eye's outer corner (crow's feet) is the artist's
+        # crease: it folds over beyond the target's own lift, so the lift
+        # fades out towards the corner
+        near = np.linalg.norm(v - v[points[corner]], axis=1)
+        shape = shapes[name] * fade_in(near, CHEEK_CORNER_CLEAR_M)[:, None]
+        per_unit = shape / float(shape[points[point], 1])
+        moved = np.intersect1d(keep, np.flatnonzero(np.linalg.norm(shape, axis=1) > 1e-5))
+        tables.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], moved))
+    return tables
+
+
+#: Nose wings (61, 62): the skin within NOSE_WING_CORE_M of 9.1 (9.2) moves
+#: whole, nothing farther than NOSE_WING_REACH_M from it, and the nose's
+#: middle (|x| under NOSE_MIDDLE_SHARE of the wing's) stays.
+NOSE_WING_CORE_M = 0.003
+NOSE_WING_REACH_M = 0.015
+NOSE_MIDDLE_SHARE = 0.45
+
+
+def nose_wing_tables(
+    v: FloatArray, triangles: IntArray, skin: IntArray, points: dict[str, int], keep: IntArray
+) -> list[Any]:
+    """stretch_l_nose (61) and stretch_r_nose (62): the nostril wing flares
+    outwards while the tip, the columella and the septum stay, so the
+    nostril widens (AU 38, nostril dilator); a sphere round 9.1 slid the
+    whole side of the nose and the cheek beside it. The weight is 1 on the
+    wing round 9.1, 0 on the nose's middle and beyond NOSE_WING_REACH_M, and
+    harmonic between (harmonic_fill); 9.1 moves one ENS per unit sideways."""
+    tables = []
+    for fap, point, sign in ((61, "9.1", 1.0), (62, "9.2", -1.0)):
+        centre = v[points[point]]
+        distance = np.linalg.norm(v[skin] - centre, axis=1)
+        core = skin[distance < NOSE_WING_CORE_M]
+        middle = skin[np.abs(v[skin, 0]) < NOSE_MIDDLE_SHARE * abs(float(centre[0]))]
+        zero = np.setdiff1d(np.union1d(middle, skin[distance > NOSE_WING_REACH_M]), core)
+        fixed = np.concatenate([core, zero])
+        values = np.concatenate([np.ones(len(core)), np.zeros(len(zero))])
+        weight = harmonic_fill(v, triangles, fixed, values, np.setdiff1d(skin, fixed))
+        per_unit = weight[:, None] * np.array([sign, 0.0, 0.0])[None, :]
+        moved = np.intersect1d(keep, np.flatnonzero(weight > 1e-4))
+        tables.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], moved))
+    return tables
+
+
+def tongue_roll_table(v: FloatArray, tongue: IntArray, middle_x: float) -> Any:
+    """tongue_roll (47) as a FaceDefMesh: each tongue vertex rises by
+    angle x d**2 / h (d its distance from the tongue's middle, h the
+    largest), so the borders rise as far as a turn of each half by the angle
+    would take them but the cross-section bends into a U (parabola) instead
+    of folding into a V at the middle. Displacements are metres per radian
+    (the AU FAPU is 1e-5 rad)."""
+    from realizer.face.facedef import FaceDefMesh
+
+    d = v[tongue, 0] - middle_x
+    lift = d**2 / float(np.abs(d).max())
+    rows = np.argsort(tongue)
+    keep = lift[rows] > 0.0
+    values = lift[rows][keep].astype(np.float16).astype(np.float64)
+    return FaceDefMesh(
+        fap=47,
+        intervals=(-1000.0, 1000.0),
+        vertices=tuple(int(i) for i in np.asarray(tongue)[rows][keep]),
+        displacements=tuple(((0.0, float(y), 0.0),) for y in values),
+        encoding="float16",
+    )
+
+
 def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig:
     """Feature points, parts, vertex masks and one or more deformers for
     every FAP 3..68, in the classes of :mod:`realizer.face.model`.
@@ -967,9 +1141,9 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     as they stretch, Tekalp and Ostermann 2000, section 2.1.3.1's example of FAP 54).
     """
     from realizer.face.model import (
+        CosineDeformer,
         DilateDeformer,
         EaseDeformer,
-        RollDeformer,
         TransformDeformer,
     )
 
@@ -1062,7 +1236,6 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             )
         )
 
-    mw0 = dist("8.3", "8.4")
     mns0 = float(fp["9.15"][1] - fp["2.2"][1])
     down, up, fwd = (0.0, -1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
     left, right = (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)
@@ -1081,8 +1254,8 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     # millimetre: only what lies below the nose tip belongs to the jaw.
     above_nose = np.flatnonzero(v[:, 1] > fp["9.3"][1])
     still = np.union1d(parts["upper_teeth"], above_nose)
-    for fap, name, axis in ((3, "jawOpen", down), (14, "jawForward", fwd), (15, "jawRight", right)):
-        deformers.append(target_table(fap, targets[name], to_head, fp_index["2.1"], axis, still))
+    jaw_shapes = {name: shape(name) for name in ("jawOpen", "jawForward", "jawRight")}
+    deformers.extend(jaw_tables(jaw_shapes, fp_index["2.1"], still))
 
     # Lip midpoints (4, 5, 8..11, 16, 17 on the inner contour, 51, 52,
     # 55..58 on the outer): FaceDefMesh tables of a smooth weight field on
@@ -1171,8 +1344,16 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
                 fap, shape(stretch), None, corner_points[side], axis, mouth_parts, CORNER_SHARE
             )
         )
-    # Chin raiser: the chin below the lower lip, up.
-    ease(18, up, 0.8 * mns0 * 1.6, (1.3, 0.8, 1.0), 0, lower_face)
+    # Chin raiser: the chin below the lower lip, up; a raised cosine (flat
+    # at 2.10 and at the rim) where a linear falloff made the chin a cone's
+    # point when pulled down.
+    masks[18] = lower_face
+    deformers.append(
+        CosineDeformer(
+            fap=18, direction=up, size=round(1.7 * mns0, 5), scale=(1.3, 0.8, 1.0),
+            use_vertex_mask=True,
+        )
+    )  # fmt: skip
 
     # Eyelids (19..22): FaceDefMesh tables from the CC0 ARKit targets, which
     # an artist sculpted for this mesh (influence spheres made steps and
@@ -1295,12 +1476,13 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     ease(37, right, 1.2 * dist("4.1", "4.3"), (1.0, 0.8, 1.0), -20, brows[1])
     ease(38, left, 1.2 * dist("4.2", "4.4"), (1.0, 0.8, 1.0), -20, brows[0])
 
-    # Cheeks: puff sideways (and a little forward), lift up.
-    cheek = 0.5 * mw0
-    ease(39, (1.0, 0.0, 0.4), cheek, (1.0, 1.2, 1.0), -20)
-    ease(40, (-1.0, 0.0, 0.4), cheek, (1.0, 1.2, 1.0), -20)
-    ease(41, up, cheek, (1.0, 0.8, 1.0), -20, upper_face)
-    ease(42, up, cheek, (1.0, 0.8, 1.0), -20, upper_face)
+    # Cheeks (39..42): the artist's cheekPuff and cheekSquint* (cheek_tables).
+    cheek_shapes = {
+        name: shape(name) for name in ("cheekPuff", "cheekSquintLeft", "cheekSquintRight")
+    }
+    deformers.extend(
+        cheek_tables(v, head.faces, cheek_shapes, fp_index, skin_only, parts["mouth_inside"])
+    )
 
     # Tongue: the tip (43..45) bends the front half; 46 lifts the body;
     # 47 rolls both borders up about the tongue's length.
@@ -1310,7 +1492,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     ease(44, up, 0.7 * length, part="tongue")
     ease(45, fwd, 0.7 * length, part="tongue")
     ease(46, up, 0.8 * length, part="tongue")
-    deformers.append(RollDeformer(fap=47, part="tongue", axis=fwd, pivot_fp="6.2"))
+    deformers.append(tongue_roll_table(v, tongue, float(fp["6.2"][0])))
 
     # Head: pitch, yaw and roll about the top of the spine (7.1); the neck
     # below it bends over 6 cm instead of turning as a block.
@@ -1323,8 +1505,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
 
     # Nose: wings out, tip up and sideways.
     nose = dist("9.1", "9.2")
-    ease(61, left, 0.5 * nose, (1.0, 1.0, 1.0), -20)
-    ease(62, right, 0.5 * nose, (1.0, 1.0, 1.0), -20)
+    deformers.extend(nose_wing_tables(v, skin_triangles, skin, fp_index, skin_only))
     ease(63, up, 0.8 * nose, (1.0, 1.0, 1.0), -20)
     # Raising the nose (positive 63) also wrinkles it, as AU 9 does ("Parameterized
     # Facial Expression Synthesis Based on MPEG-4", Table 1: raise nose +
@@ -1457,12 +1638,199 @@ def close_lips(head: HeadMesh, targets: dict[str, Target], n_base: int) -> HeadM
     return dataclasses.replace(head, vertices=moved)
 
 
+def _table_positions(
+    v: FloatArray, table: Any, value: float, unit: float, rows: IntArray, slopes: FloatArray
+) -> FloatArray:
+    """The vertices ``v`` (metres) under ``table`` alone at ``value``:
+    ``slopes`` (k, intervals, 3) are its displacements per unit on ``rows``."""
+    borders = np.asarray(table.intervals, dtype=np.float64)
+    lows, highs = borders[:-1].copy(), borders[1:].copy()
+    lows[0], highs[-1] = -np.inf, np.inf
+    coef = np.clip(value, lows, highs) - np.clip(0.0, lows, highs)
+    out = v.copy()
+    out[rows] += np.einsum("kis,i->ks", slopes, coef) * unit
+    return out
+
+
+def _folded(v: FloatArray, moved: FloatArray, triangles: IntArray) -> int:
+    """Triangles whose normal turns past 90 degrees (realizer.face.audit's folds)."""
+    a, b = v[triangles], moved[triangles]
+    n0 = np.cross(a[:, 1] - a[:, 0], a[:, 2] - a[:, 0])
+    n1 = np.cross(b[:, 1] - b[:, 0], b[:, 2] - b[:, 0])
+    big = np.linalg.norm(n0, axis=1) > 1e-9
+    return int(np.sum(big & (np.sum(n0 * n1, axis=1) < 0.0)))
+
+
+def _neighbour_mean(triangles: IntArray, n: int) -> Any:
+    """The (n, n) sparse operator: the mean over each vertex's mesh neighbours."""
+    from scipy.sparse import coo_matrix, diags
+
+    i = np.concatenate([triangles[:, k] for k in range(3)] * 2)
+    j = np.concatenate([triangles[:, (k + 1) % 3] for k in range(3)])
+    j = np.concatenate([j, np.concatenate([triangles[:, (k + 2) % 3] for k in range(3)])])
+    adjacency = coo_matrix((np.ones(i.size), (i, j)), shape=(n, n)).tocsr()
+    adjacency.data[:] = 1.0
+    degree = np.asarray(adjacency.sum(axis=1)).ravel()
+    return diags(1.0 / np.maximum(degree, 1.0)) @ adjacency
+
+
+#: fold_free_table: smoothed slopes are cut where they move a vertex less
+#: than this share of the feature point. The lip midpoints keep their shape
+#: up to where it would fold (smoothing it earlier pushed the inside of the
+#: mouth through the lower lip, which no fold count sees).
+EXTENSION_PRUNE = 0.01
+LIP_MIDPOINT_FAPS = frozenset({4, 5, 8, 9, 10, 11, 16, 17, 51, 52, 55, 56, 57, 58})
+
+
+def fold_free_table(
+    table: Any,
+    v: FloatArray,
+    triangles: IntArray,
+    smoother: Any,
+    unit: float,
+    anchor: int,
+    axis: FloatArray,
+    reach: float,
+    still: IntArray,
+    signs: tuple[float, ...] = (1.0, -1.0),
+) -> Any:
+    """``table`` (a FaceDefMesh of FAP unit ``unit`` metres) with no skin
+    triangle of ``triangles`` folding over (realizer.face.audit's folds) at
+    any value up to ``reach`` on each side in ``signs``: lip fields, steep
+    where the moving lip meets the still one, folded the skin at 800 MNS.
+
+    Where the table folds at some value (tried 32 steps up to ``reach``;
+    the first fold-free border found to a unit), a new interval starts: at
+    that border, or at 3/4 or 1/2 of it (not for a lip midpoint), the
+    outermost slope is replaced by a smoothed copy (the
+    mean over mesh neighbours applied 4, 8 or 16 times: the same motion
+    spread wider), rescaled so the feature vertex ``anchor`` still moves as
+    far along ``axis`` per unit; ``still`` (eyeballs, upper teeth) never
+    moves. The first fold-free choice is kept; if none is, the table stops
+    at the border (a last slope of 0): the lip presses against the other."""
+    rows = np.asarray(table.vertices, dtype=np.int64)
+    slopes = table.displacement_array().astype(np.float64)
+    n = len(v)
+    grid = reach * np.arange(1, 33) / 32.0
+
+    def folds(trial: Any, values: npt.ArrayLike) -> bool:
+        t_rows = np.asarray(trial.vertices, dtype=np.int64)
+        t_slopes = trial.displacement_array().astype(np.float64)
+        return any(
+            _folded(v, _table_positions(v, trial, float(a), unit, t_rows, t_slopes), triangles)
+            for a in np.asarray(values)
+        )
+
+    for sign in signs:
+        outer = slopes[:, -1 if sign > 0 else 0]
+        first = next((float(a) for a in grid if folds(table, [sign * a])), None)
+        if first is None:
+            continue
+        low, high = 0.0, first
+        while high - low > 1.0:
+            middle = 0.5 * (low + high)
+            low, high = (low, middle) if folds(table, [sign * middle]) else (middle, high)
+        free = math.floor(low)
+        dense = np.zeros((n, 3))
+        dense[rows] = outer
+        along = float(dense[anchor] @ axis)
+        smoothed = []
+        smooth = dense.copy()
+        for times in range(1, 17):
+            smooth = smoother @ smooth
+            smooth[still] = 0.0
+            if times in (4, 8, 16):
+                scaled = smooth * (along / float(smooth[anchor] @ axis))
+                scaled[np.abs(scaled).max(axis=1) < EXTENSION_PRUNE * abs(along)] = 0.0
+                smoothed.append(scaled)
+        chosen, at = np.zeros((n, 3)), float(free)
+        borders = [float(free)]
+        if table.fap not in LIP_MIDPOINT_FAPS:
+            borders += [math.floor(free * share / 25.0) * 25.0 for share in (0.75, 0.5)]
+        options = [(b, f) for b in borders if b > 0 for f in smoothed]
+        for border, field in options:
+            if not folds(_split(table, rows, slopes, sign * border, field), sign * grid):
+                chosen, at = field, border
+                break
+        table = _split(table, rows, slopes, sign * at, chosen)
+        rows = np.asarray(table.vertices, dtype=np.int64)
+        slopes = table.displacement_array().astype(np.float64)
+    return table
+
+
+def _split(table: Any, rows: IntArray, slopes: FloatArray, at: float, beyond: FloatArray) -> Any:
+    """``table`` with a new border at ``at`` (in its outermost interval on
+    that side) and the displacements (n, 3) per unit ``beyond`` past it."""
+    from realizer.face.facedef import FaceDefMesh
+
+    borders = list(table.intervals)
+    n = beyond.shape[0]
+    dense = np.zeros((n, slopes.shape[1], 3))
+    dense[rows] = slopes
+    if at > 0:
+        borders = [*borders[:-1], round(at, 1), borders[-1]]
+        stack = np.concatenate([dense, beyond[:, None, :]], axis=1)
+    else:
+        borders = [borders[0], round(at, 1), *borders[1:]]
+        stack = np.concatenate([beyond[:, None, :], dense], axis=1)
+    keep = np.flatnonzero(np.abs(stack).max(axis=(1, 2)) > 0)
+    values = stack[keep].astype(np.float16).astype(np.float64)
+    return FaceDefMesh(
+        fap=table.fap,
+        intervals=tuple(borders),
+        vertices=tuple(int(i) for i in keep),
+        displacements=tuple(tuple((d[0], d[1], d[2]) for d in row) for row in values.tolist()),
+        encoding="float16",
+    )
+
+
+def fold_free_deformers(head: HeadMesh, rig: Rig) -> list[Any]:
+    """The rig's deformers with each table of the FAPs of
+    realizer.face.audit.PRACTICAL_RANGE made fold-free up to that value
+    (fold_free_table)."""
+    from realizer.face.audit import PRACTICAL_RANGE
+    from realizer.face.facedef import FaceDefMesh
+    from realizer.face.faps import DIRECTION_AXES, FAP_TABLE
+    from realizer.face.fapu import Fapu
+
+    v = head.vertices * METRES_PER_UNIT
+    skin = rig.parts["skin"]
+    triangles = head.faces[np.isin(head.faces, skin).all(axis=1)]
+    smoother = _neighbour_mean(head.faces, len(v))
+    units = Fapu.from_feature_points(rig.feature_points).per_fap()
+    still = np.concatenate([rig.parts[p] for p in ("left_eye", "right_eye", "upper_teeth")])
+    fp_vertex = {
+        name: int(np.argmin(np.linalg.norm(v - np.asarray(p), axis=1)))
+        for name, p in rig.feature_points.items()
+    }
+    out = []
+    for deformer in rig.deformers:
+        reach = PRACTICAL_RANGE.get(deformer.fap)
+        if isinstance(deformer, FaceDefMesh) and reach is not None:
+            info = FAP_TABLE[deformer.fap]
+            deformer = fold_free_table(
+                deformer,
+                v,
+                triangles,
+                smoother,
+                float(units[deformer.fap - 1]),
+                fp_vertex[info.feature_points[0]],
+                np.asarray(DIRECTION_AXES[info.direction]),
+                float(reach),
+                still,
+                (1.0,) if info.unidirectional else (1.0, -1.0),
+            )
+        out.append(deformer)
+    return out
+
+
 def build_files(wheel: Wheel) -> dict[str, bytes]:
     from realizer.face.model import Face, FaceParameters
     from realizer.face.paramfile import serialise_parameters
 
     head = close_lips(extract_head(wheel.base), wheel.targets, len(wheel.base.vertices))
     rig = build_rig(head, wheel.targets, wheel.base)
+    rig = dataclasses.replace(rig, deformers=fold_free_deformers(head, rig))
     params = FaceParameters(
         feature_points=rig.feature_points,
         keep_syncs=(),

@@ -5,7 +5,9 @@ bidirectional FAP on its own, at the values ``realizer fap-sheet`` shows)
 prints whether the skin folds over, whether the FAP's probe point moves the
 way "Face and 2-D mesh animation in MPEG-4", Table 7 says, whether a one-sided
 FAP leaves the other side, and whether the motion is large enough to see
-(:mod:`realizer.face.audit`). Exits 1 when any displacement fails.
+(:mod:`realizer.face.audit`). ``--range`` checks the jaw, lip, cheek and
+nose FAPs at a quarter, half, three quarters and all of their practical
+range (``PRACTICAL_RANGE``) instead. Exits 1 when any displacement fails.
 """
 
 from __future__ import annotations
@@ -18,11 +20,14 @@ from realizer.commands import load_face_option, plain_text
 
 def run(args: argparse.Namespace) -> int:
     from realizer.commands.fap_sheet import load_sheet_entries
-    from realizer.face.audit import audit_face, format_audit
+    from realizer.face.audit import audit_face, audit_range, format_audit
 
     face = load_face_option(args.face)
-    poses = [(e.fap, e.value, e.jaw_open) for e in load_sheet_entries()]
-    rows = audit_face(face, poses)
+    if args.range:
+        rows = audit_range(face)
+    else:
+        poses = [(e.fap, e.value, e.jaw_open) for e in load_sheet_entries()]
+        rows = audit_face(face, poses)
     print(format_audit(rows))
     return 0 if all(r.ok for r in rows) else 1
 
@@ -36,5 +41,10 @@ def register(subparsers: Any) -> None:
     parser.add_argument(
         "--face",
         help="a face file (STEM, STEM.npz or STEM.xml); default: the built-in default face",
+    )
+    parser.add_argument(
+        "--range",
+        action="store_true",
+        help="the jaw, lip, cheek and nose FAPs at 1/4..1 of their practical range instead",
     )
     parser.set_defaults(run=run)

@@ -22,6 +22,10 @@ shows (``data/fap_sheet.csv``), what can be measured on the mesh:
   than a quarter as far;
 * **visible**: the probe moves at least ``VISIBLE_M`` (0.5 mm; radius or
   roll 0.2 mm) along that direction.
+
+:func:`audit_range` measures the same over the practical range of the jaw,
+lip, cheek and nose FAPs (:data:`PRACTICAL_RANGE`), where tables that are
+fold-free at the sheet's value folded the lips at 800 MNS.
 """
 
 from __future__ import annotations
@@ -42,6 +46,29 @@ VISIBLE_M = 0.0005
 VISIBLE_SMALL_M = 0.0002
 #: A one-sided FAP may move the mirror point at most this share of its own.
 MIRROR_SHARE = 0.25
+
+#: The largest value (FAPU-scaled) at which the default face's jaw, lip,
+#: cheek and nose FAPs (3..18, 39..42, 51..62) must not fold the skin, each
+#: direction on its own: the emotion profiles of "Parameterized Facial
+#: Expression Synthesis Based on MPEG-4" reach 1252 on open_jaw, 792 on the
+#: lower lip and 332 on the corners' stretch; beyond these a real face
+#: cannot go either (a lip 14 mm from rest, a corner stretched 14 mm, a
+#: nostril wing flared 7 mm). ``scripts/extract_default_face.py`` makes its
+#: tables fold-free up to them (``fold_free_table``), ``realizer fap-audit
+#: --range`` checks them. The tongue's FAPs move no skin; the eyes', brows',
+#: head's and ears' FAPs are audited at the sheet's values only.
+PRACTICAL_RANGE: dict[int, float] = {
+    3: 1280,
+    **dict.fromkeys((4, 5, 8, 9, 10, 11, 16, 17, 51, 52, 55, 56, 57, 58), 800),
+    **dict.fromkeys((6, 7, 53, 54, 15), 256),
+    **dict.fromkeys((12, 13, 59, 60, 14), 600),
+    18: 512,
+    **dict.fromkeys((39, 40), 256),
+    **dict.fromkeys((41, 42), 170),
+    **dict.fromkeys((61, 62), 150),
+}
+#: The values :func:`audit_range` tries: these shares of the practical range.
+RANGE_STEPS = (0.25, 0.5, 0.75, 1.0)
 
 _AXES = {
     "up": (0.0, 1.0, 0.0),
@@ -180,6 +207,19 @@ def audit_face(face: Face, poses: Iterable[tuple[int, float, float]]) -> list[Au
         signs = (1.0, -1.0) if FAP_TABLE[fap].bidirectional else (1.0,)
         for sign in signs:
             rows.append(audit_displacement(face, fap, sign * value, jaw_open))
+    return rows
+
+
+def audit_range(
+    face: Face, ranges: dict[int, float] | None = None, steps: Iterable[float] = RANGE_STEPS
+) -> list[AuditRow]:
+    """Every FAP of ``ranges`` (default :data:`PRACTICAL_RANGE`) at the
+    ``steps`` shares of its range, both signs of a bidirectional FAP: the
+    same measures as :func:`audit_face`, beyond the sheet's single value."""
+    rows = []
+    for fap, reach in sorted((PRACTICAL_RANGE if ranges is None else ranges).items()):
+        for share in steps:
+            rows.extend(audit_face(face, [(fap, share * reach, 0.0)]))
     return rows
 
 

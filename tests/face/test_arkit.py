@@ -33,7 +33,11 @@ def expression(**faps: float) -> np.ndarray:
 
 def test_an_open_jaw_is_mostly_jaw_open_and_a_smile_smiles(fit: ArkitFit) -> None:
     jaw = fit.frame(expression(f3=500)).weights
-    assert ARKIT_NAMES[int(np.argmax(jaw))] == "jawOpen"
+    # the default face opens its jaw as jawOpen plus the joint's forward
+    # glide (jawForward), which keeps the chin from swinging back
+    # (scripts/extract_default_face.py, jaw_tables)
+    assert {ARKIT_NAMES[int(i)] for i in np.argsort(-jaw)[:2]} == {"jawOpen", "jawForward"}
+    assert jaw[ARKIT_NAMES.index("jawOpen")] > 0.2
     smile = fit.frame(expression(f12=250, f13=250, f53=200, f54=200)).weights
     assert smile[ARKIT_NAMES.index("mouthSmileLeft")] > 0.1
     assert smile[ARKIT_NAMES.index("jawOpen")] < smile[ARKIT_NAMES.index("mouthSmileLeft")]

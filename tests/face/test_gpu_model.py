@@ -40,7 +40,8 @@ def test_every_rigid_part_and_table_reaches_the_model(face) -> None:  # type: ig
     model = gpu_model_for(face)
     kinds = set((model.entries[:, 0] // 3).astype(int).tolist())
     assert kinds == {0, 1}  # influence deformers and FaceDefMesh/dilation tables
-    assert model.group_count >= 4  # eyes, tongue, jaw, head
+    # the two eyes and the head (the jaw and the tongue roll are tables)
+    assert model.group_count >= 3
     jaw = np.zeros(68)
     jaw[2] = 500.0  # open_jaw
     moved = np.abs(model.evaluate(jaw) - face.vertices).max(axis=1) > 1e-4
