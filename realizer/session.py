@@ -159,6 +159,29 @@ class AdmittedBlock:
     earlier: tuple[TimedPlan, ...]
     #: behaviours of other active blocks whose resource channels are taken
     occupied: list[tuple[str, ScheduledBehaviour]] = field(default_factory=list)
+    #: the sync times of ``earlier``, (block, behaviour, sync) -> global
+    #: seconds, when already collected (a planner process is sent these, not
+    #: the plans): None, collect them from ``earlier``
+    external: dict[tuple[str, str, str], float] | None = None
+
+    def external_times(self) -> dict[tuple[str, str, str], float]:
+        """The fixed times the block refers to: the sync points of the earlier
+        blocks it names (``bml1:nod1:end``), (block, behaviour, sync) -> seconds.
+
+        Linear in the block's references and the named blocks' sync points."""
+        if self.external is not None:
+            return self.external
+        block = self.result.block
+        named = {
+            ref.block
+            for _, ref in block.all_sync_refs()
+            if ref.block is not None and ref.block != block.id
+        }
+        external: dict[tuple[str, str, str], float] = {}
+        for earlier in self.earlier:
+            if earlier.id in named:
+                external.update(earlier.global_keys())
+        return external
 
 
 @dataclass(slots=True)
@@ -356,9 +379,7 @@ class Session:
         block = admitted.result.block
         now = admitted.now
         notes: list[Feedback] = []
-        external: dict[tuple[str, str, str], float] = {}
-        for earlier in admitted.earlier:
-            external.update(earlier.global_keys())
+        external = admitted.external_times()
         try:
             plan = schedule_block(
                 block,

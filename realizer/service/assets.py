@@ -8,11 +8,13 @@ viewer). All are loaded once, at start-up.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from realizer.service.planner import PlanningRecipe
 from realizer.service.server import FaceAssets
 from realizer.session import Session
 
@@ -45,9 +47,22 @@ def face_assets(face: Any) -> FaceAssets:
     return FaceAssets(face=face, deform=deform, colours=srgb_colours(face))
 
 
+class Sessions:
+    """``character_id -> Session``, and how a planner process builds the same
+    engines (``planning``; realizer.service.planner): a service whose
+    session factory has one plans its blocks in planner processes."""
+
+    def __init__(self, make: Callable[[str], Session], planning: PlanningRecipe) -> None:
+        self._make = make
+        self.planning = planning
+
+    def __call__(self, character_id: str) -> Session:
+        return self._make(character_id)
+
+
 def session_factory(
     face: Any, *, idle: bool = False, seed: int = 0, speech: dict[str, str] | None = None
-) -> Any:
+) -> Sessions:
     """``character_id -> Session(character_id, face)``.
 
     With ``idle``, each character's face is kept alive between behaviours
@@ -82,4 +97,6 @@ def session_factory(
         session: Session = Session(character_id, face, idle=motion, registry=registry)
         return session
 
-    return make
+    # The face and idle motion are not planning's (frames are made here).
+    recipe = PlanningRecipe(tuple(sorted(speech.items())) if speech else ())
+    return Sessions(make, recipe)

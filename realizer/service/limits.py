@@ -45,6 +45,13 @@ class ServiceLimits:
     is refused, so viewers cannot take the submitters' characters.
     ``character_idle_seconds``: a character with no open block, no viewer
     and no submitter naming it is freed after this many seconds.
+    ``planning_milliseconds``: the time a planner process may spend on one
+    message (parsing it, the engines' preparation, scheduling and
+    realizing its block); over it the block is refused with a
+    ``warningFeedback`` naming this limit and the process is replaced
+    (realizer.service.planner). A block of ``behaviours_per_block``
+    behaviours plans in tens of milliseconds on an idle machine, a few
+    hundred under heavy load; the budget is for what must never happen.
     """
 
     message_bytes: int = 256 * 1024
@@ -60,6 +67,7 @@ class ServiceLimits:
     warnings_per_block: int = 100
     viewer_characters: int = 8
     character_idle_seconds: int = 300
+    planning_milliseconds: int = 5000
 
     def __post_init__(self) -> None:
         for name in self.__slots__:

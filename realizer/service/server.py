@@ -37,7 +37,7 @@ from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from importlib import resources
-from typing import Any, ClassVar, Protocol, cast
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, cast
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
@@ -79,6 +79,9 @@ from realizer.service.stage import (
     WireFeedback,
 )
 
+if TYPE_CHECKING:
+    from realizer.service.planner import PlannerPool
+
 logger = logging.getLogger("realizer.service")
 
 #: Bytes a connection's socket buffer may hold before sending waits (and a
@@ -106,12 +109,19 @@ class ServiceConfig:
     view_token: str | None = None
     limits: ServiceLimits = DEFAULT_LIMITS
     shutdown_timeout: float = 2.0
-    #: threads that parse and plan submitted blocks, off the event loop
+    #: threads that handle submitted messages off the event loop (each waits
+    #: for a planner process, or, with none, parses and plans itself)
     planner_threads: int = 4
+    #: processes that parse and plan submitted blocks (realizer.service.planner),
+    #: so a submitter's CPU is never the clock's; 0: the planner threads
+    #: parse and plan in the service's own process (sharing its interpreter lock)
+    planner_processes: int = 2
 
     def __post_init__(self) -> None:
         if not 1 <= self.planner_threads <= 64:
             raise ConfigError(f"planner_threads must be 1 to 64, not {self.planner_threads}")
+        if not 0 <= self.planner_processes <= 64:
+            raise ConfigError(f"planner_processes must be 0 to 64, not {self.planner_processes}")
         if not 1.0 <= self.fps <= 1000.0:
             raise ConfigError(f"fps must be between 1 and 1000, not {self.fps}")
         if self.submit_token is None and self.view_token is None and not is_loopback(self.host):
@@ -386,6 +396,8 @@ class RealizerService:
         self._planner = ThreadPoolExecutor(
             max_workers=config.planner_threads, thread_name_prefix="realizer-planner"
         )
+        # ... and, by default, in planner processes (started by start()).
+        self._planner_pool: PlannerPool | None = None
         # The sparse solver's scipy is imported lazily; import it here, before
         # any frame, so a first big block does not import it on a planner
         # thread while the clock runs (the light install has no scipy: fine).
@@ -415,6 +427,7 @@ class RealizerService:
         # of a new character connects. (A cluster gateway has no sessions.)
         if self.runs_clock:
             self.stage.make_session(self.stage.default_character)
+            await self._start_planner()
         self._server = await websocket_serve(
             self._handle,
             self.config.host,
@@ -441,6 +454,29 @@ class RealizerService:
         self.stats.started = self._start
         if self.runs_clock:
             self._clock = loop.create_task(self._run_clock(), name="realizer-clock")
+
+    async def _start_planner(self) -> None:
+        """Start the planner processes (``config.planner_processes``) and give
+        them to the stage, when its sessions say how to build their engines
+        in another process (realizer.service.assets.Sessions); otherwise the
+        planner threads plan in this process."""
+        recipe = getattr(self.stage.make_session, "planning", None)
+        processes = self.config.planner_processes
+        if processes == 0 or recipe is None or self.stage.planner is not None:
+            return
+        from realizer.service.planner import PlannerPool
+
+        # Starting the children (and, the first time, the fork server that
+        # imports and warms up the planner) takes a while: off the loop.
+        self._planner_pool = await asyncio.to_thread(
+            PlannerPool, processes, recipe, self.limits.planning_milliseconds
+        )
+        self.stage.planner = self._planner_pool
+        logger.debug(
+            "%d planner processes started in %.3f s",
+            processes,
+            self._planner_pool.start_seconds,
+        )
 
     async def shutdown(self, reason: str = "server shutting down") -> None:
         """The shutdown sequence, each waiting step bounded by the timeout."""
@@ -480,6 +516,10 @@ class RealizerService:
         for task in list(self._tasks):
             task.cancel()
         self._planner.shutdown(wait=False, cancel_futures=True)
+        if self._planner_pool is not None:
+            self.stage.planner = None
+            self._planner_pool.close()
+            self._planner_pool = None
 
     # -- the clock ------------------------------------------------------------------
 

@@ -47,13 +47,14 @@ import math
 import re
 import threading
 from collections.abc import Callable, Iterable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
-from realizer.bml_parser import BmlError, Limits, parse_bml
+from realizer.bml_parser import BmlError, Limits, ParseResult, parse_bml
 from realizer.errors import RealizerError
 from realizer.face.fapcoding import DEFAULT_FAP_QUANT, FapStreamEncoder, is_intra
 from realizer.face.frame import FapFrame
@@ -64,7 +65,7 @@ from realizer.service import codec
 from realizer.service.errors import LimitExceeded, PeerError
 from realizer.service.limits import DEFAULT_LIMITS, ServiceLimits, valid_character_id
 from realizer.service.messages import BlockState, DeltaPayload, ViewOptions, warning_feedback_xml
-from realizer.session import Session
+from realizer.session import AdmittedBlock, PlannedBlock, Session
 
 logger = logging.getLogger("realizer.service")
 
@@ -76,6 +77,25 @@ CODED_INTRA_SECONDS = 1.0
 
 #: Makes the session of a character id (realizer.service.assets.session_factory).
 SessionFactory = Callable[[str], Session]
+
+
+class PlanLease(Protocol):
+    """One planner (a process) for one submission: it parses the text, then
+    plans the block it parsed once the session has admitted it
+    (realizer.service.planner.PlannerLease). Its errors are
+    :class:`realizer.errors.RealizerError` with a ``warning_type``."""
+
+    def parse(self, text: str, limits: Limits, *, prepare: bool) -> ParseResult: ...
+
+    def plan(self, admitted: AdmittedBlock, character_id: str, scene: Any) -> PlannedBlock: ...
+
+
+class BlockPlanner(Protocol):
+    """Where a stage parses and plans blocks (realizer.service.planner.PlannerPool)."""
+
+    def lease(self) -> AbstractContextManager[PlanLease]: ...
+
+
 Deformer = Callable[[Any, npt.NDArray[np.float64]], npt.NDArray[Any]]
 
 
@@ -213,10 +233,15 @@ class Stage:
         make_session: SessionFactory,
         limits: ServiceLimits = DEFAULT_LIMITS,
         default_character: str = "default",
+        *,
+        planner: BlockPlanner | None = None,
     ) -> None:
         if not valid_character_id(default_character):
             raise ValueError(f"invalid default character id {default_character!r}")
         self.make_session = make_session
+        #: where blocks are parsed and planned: planner processes
+        #: (realizer.service.planner.PlannerPool), or None: the calling thread
+        self.planner = planner
         self.limits = limits
         self.default_character = default_character
         self.characters: dict[str, Character] = {}
@@ -313,13 +338,43 @@ class Stage:
         and a ``rejected`` :class:`BlockEvent`.
         """
         now = self._advance(now)
+        planner = self.planner
+        if planner is None:
+            return self._submit_bml(text, now, None, character, fallback, strict, clock)
+        try:
+            with planner.lease() as lease:
+                return self._submit_bml(text, now, lease, character, fallback, strict, clock)
+        except RealizerError as exc:  # no planner process (the service is stopping)
+            target = character or fallback or self.default_character
+            warning_type = str(getattr(exc, "warning_type", "CANNOT_CREATE_BEHAVIOR"))
+            return self._refuse(target, _guess_block_id(text), now, warning_type, str(exc))
+
+    def _submit_bml(
+        self,
+        text: str,
+        now: float,
+        lease: PlanLease | None,
+        character: str | None,
+        fallback: str | None,
+        strict: bool,
+        clock: Callable[[], float] | None,
+    ) -> SubmitResult:
+        """:meth:`submit_bml`, parsing and planning with ``lease`` (a planner
+        process) or, None, in this thread."""
         default = fallback or self.default_character
         try:
-            parsed = parse_bml(text, limits=self._parse_limits)
+            if lease is not None:
+                parsed = lease.parse(text, self._parse_limits, prepare=clock is not None)
+            else:
+                parsed = parse_bml(text, limits=self._parse_limits)
         except BmlError as exc:
             block_id = _guess_block_id(text)
             target = character or default
             return self._refuse(target, block_id, now, exc.warning_type, self._describe(exc))
+        except RealizerError as exc:  # the planner process: over its budget, or gone
+            target = character or default
+            warning_type = str(getattr(exc, "warning_type", "CANNOT_CREATE_BEHAVIOR"))
+            return self._refuse(target, _guess_block_id(text), now, warning_type, str(exc))
         block = parsed.block
         target = character or block.character_id or default
         try:
@@ -328,16 +383,14 @@ class Stage:
             return self._refuse(target, block.id, now, exc.warning_type, exc.message)
         if clock is not None:
             registry = getattr(found.session, "registry", None)
-            if registry is not None:
+            if registry is not None and lease is None:  # a lease prepared in its parse
                 for behaviour in block.behaviours:
                     registry.prepare(behaviour)
             now = self._advance(max(now, clock()))
         with found.submitting:
             with found.lock:
                 if self.characters.get(target) is not found:  # freed meanwhile: once more
-                    return self.submit_bml(
-                        text, now, character=character, fallback=fallback, strict=strict
-                    )
+                    return self._submit_bml(text, now, lease, character, fallback, strict, None)
                 now = self._advance(now)
                 if not hasattr(found.session, "plan_bml"):  # a stand-in: all at once
                     return self._submit(found, parsed, now, strict)
@@ -352,7 +405,11 @@ class Stage:
                     return self._submitted(found, parsed.block.id, now, None)
             # Planned with the session free: its clock ticks meanwhile.
             try:
-                planned = found.session.plan_bml(admitted)
+                if lease is not None:
+                    scene = getattr(found.session, "scene", None)
+                    planned = lease.plan(admitted, found.id, scene)
+                else:
+                    planned = found.session.plan_bml(admitted)
             except Exception as exc:
                 with found.lock:
                     return self._planning_failed(found, parsed.block.id, self._advance(now), exc)
