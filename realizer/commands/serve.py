@@ -92,6 +92,13 @@ def register(subparsers: Any) -> None:
     parser.add_argument(
         "--log-format", choices=("text", "json"), help="log lines as text (default) or JSON"
     )
+    parser.add_argument(
+        "--planner-processes",
+        type=int,
+        metavar="N",
+        help="processes that parse and plan submitted BML, so no submitter takes CPU from "
+        "the frame clock (default 2; 0: threads of the service's own process)",
+    )
     parser.set_defaults(run=run)
 
 
@@ -195,6 +202,7 @@ def run(args: argparse.Namespace) -> int:
             "view_token": args.view_token,
             "log_level": args.log_level,
             "log_format": args.log_format,
+            "planner_processes": args.planner_processes,
             "limits": _limits(args.limit),
         }
         settings = resolve(from_file, flags, os.environ)
@@ -222,6 +230,7 @@ def run(args: argparse.Namespace) -> int:
             submit_token=settings.submit_token,
             view_token=settings.view_token,
             limits=limits,
+            planner_processes=settings.planner_processes,
         )
         face = load_face(settings.face)
         speech = {

@@ -71,6 +71,13 @@ def cluster_parser(
         "--id", default="", help="this process's id in the cluster (default: ROLE-HOST-PID-xxxx)"
     )
     parser.add_argument(
+        "--planner-processes",
+        type=int,
+        default=2,
+        metavar="N",
+        help="processes that parse and plan this worker's blocks (default 2; 0: threads)",
+    )
+    parser.add_argument(
         "--lease-ttl",
         type=float,
         default=2.0,
@@ -102,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
             fps=args.fps,
             limits=limits,
             submit_token=secrets.token_hex(16),
+            planner_processes=args.planner_processes,
         )
         cluster = cluster_config(args, drain_timeout=args.drain)
         face = load_face(args.face)

@@ -92,8 +92,11 @@ class PeerLines(logging.Filter):
         record.peer, record.path = peer, path
         response = getattr(connection, "response", None)
         status = getattr(response, "status_code", None)
+        # get_all: a peer may repeat a header (answered 400), and a log line
+        # must not fail on it (get() raises MultipleValuesError)
+        upgrade = " ".join(request.headers.get_all("Upgrade")) if request is not None else ""
         wanted_websocket = path.partition("?")[0] in ("/bml", "/view") or (
-            request is not None and "websocket" in str(request.headers.get("Upgrade", "")).lower()
+            "websocket" in upgrade.lower()
         )
         if message.startswith(("HTTP response sent", "connection rejected")):
             if status is not None and status >= 400 and wanted_websocket:

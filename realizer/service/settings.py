@@ -20,6 +20,7 @@ but the tokens has a key::
     stomp_layout = "asap"          # asap, greta or vhmsg (protocols/stomp.md)
     log_level = "info"             # debug, info, warning, error
     log_format = "json"            # text or json
+    planner_processes = 2          # parse and plan in 2 processes; 0: threads
 
     [serve.limits]                 # any named limit (protocols/README.md)
     viewers = 200
@@ -78,6 +79,7 @@ class ServeSettings:
     stomp_feedback_topic: str | None = None
     log_level: str = "info"
     log_format: str = "text"
+    planner_processes: int = 2
     limits: dict[str, int] = field(default_factory=dict)
     submit_token: str | None = None
     view_token: str | None = None
@@ -101,6 +103,7 @@ _TYPES: dict[str, tuple[type, ...]] = {
     "stomp_feedback_topic": (str,),
     "log_level": (str,),
     "log_format": (str,),
+    "planner_processes": (int,),
 }
 
 
@@ -211,6 +214,8 @@ def resolve(
         raise ConfigError(f"fps {settings.fps} is not between 0 and 1000")
     if settings.tts not in TTS:
         raise ConfigError(f"tts must be one of {', '.join(TTS)}")
+    if isinstance(settings.planner_processes, bool) or not 0 <= settings.planner_processes <= 64:
+        raise ConfigError(f"planner_processes {settings.planner_processes} is not between 0 and 64")
     if settings.stomp_layout not in STOMP_LAYOUTS:
         raise ConfigError(f"stomp_layout must be one of {', '.join(STOMP_LAYOUTS)}")
     return settings
@@ -230,7 +235,7 @@ def to_toml(settings: ServeSettings) -> str:
     for name in (
         "host", "port", "fps", "face", "character", "avatar", "idle", "seed",
         "tts", "voice", "piper_model", "stomp", "stomp_layout", "stomp_bml_topic",
-        "stomp_feedback_topic", "log_level", "log_format",
+        "stomp_feedback_topic", "log_level", "log_format", "planner_processes",
     ):  # fmt: skip
         value = getattr(settings, name)
         if value is None:

@@ -1,17 +1,20 @@
 """Hostile input over real WebSockets: no client can hurt another (issue 10).
 
-The real server on a free loopback port with real sessions, parser and
-face. A hostile client sends every input of the audit
+``realizer serve`` as it is deployed (its own process, the default
+settings: planner processes, real sessions, parser and face) on a free
+loopback port. A hostile client sends every input of the audit
 (:mod:`realizer.service.hostile`) while a viewer of another character counts
 frames and that character's submitter measures how long ``accepted`` takes.
 Checked: no gap between the viewer's frames over 50 ms (three frame periods
-at 60 fps), ``accepted`` within 50 ms, less than 100 MB of memory growth,
-the other listeners of the hostile client's character still connected, and
-every character accepting new blocks afterwards.
+at 60 fps), ``accepted`` within 50 ms, less than 100 MB of memory growth of
+the server and its planner processes, the other listeners of the hostile
+client's character still connected, and every character accepting new
+blocks afterwards.
 
 Timing is judged only when the machine is not overloaded (load average at
-most the number of cores); otherwise the timing assertions are skipped with
-the figures in the reason, and everything else is still checked.
+most the number of cores, before and after the attack); otherwise the
+timing assertions are skipped with the figures in the reason, and
+everything else is still checked.
 """
 
 from __future__ import annotations
@@ -22,7 +25,6 @@ import itertools
 import json
 import os
 import time
-from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -30,44 +32,49 @@ import pytest
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed
 
-from realizer.service.assets import face_assets, load_face, session_factory
 from realizer.service.hostile import BML_NS, HTTP_REQUESTS, hostile_messages
-from realizer.service.limits import ServiceLimits
-from realizer.service.server import FaceAssets
 from tests.service.conftest import UNIT
-from tests.service.harness import http_json, running_service
+from tests.service.harness import http_json
+from tests.service.process import ServeProcess, serve_process
 
-#: The goal for the longest gap between two frames a viewer sees, seconds
-#: (three frame periods at 60 fps). Run alone on an idle 2-core machine the
-#: longest gap was 0.046 s; inside a full-suite run, with other sessions' work
-#: starting on the machine, one run showed 0.20 s (the server's own /health gap
-#: agreed) while its load average stayed under the core count. So the test
-#: asserts FRAME_GAP_BOUND, which still catches the defects' stalls of seconds,
-#: and prints whether the goal held; `realizer bench hostile` times each input.
+#: The longest gap allowed between two frames a viewer sees, seconds (three
+#: frame periods at 60 fps).
 FRAME_GAP = 0.050
-#: What is asserted today, seconds (see FRAME_GAP).
-FRAME_GAP_BOUND = 0.5
 #: How long ``accepted`` may take, seconds.
 ACCEPT_LATENCY = 0.050
 #: Growth of the server's resident memory allowed, bytes.
 MEMORY_GROWTH = 100 * 1024 * 1024
 
 
-@cache
-def real_face() -> Any:
-    return load_face()
+def _descendants(pid: int) -> list[int]:
+    """``pid`` and every process below it (the planner processes are forked
+    by the fork server, a child of the server)."""
+    parents: dict[int, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        parents.setdefault(int(fields[1]), []).append(int(entry.name))
+    found, pending = [], [pid]
+    while pending:
+        current = pending.pop()
+        found.append(current)
+        pending.extend(parents.get(current, ()))
+    return found
 
 
-@cache
-def real_assets() -> FaceAssets:
-    return face_assets(real_face())
-
-
-def resident_bytes() -> int:
-    statm = Path("/proc/self/statm")
-    if not statm.exists():
-        pytest.skip("no /proc/self/statm to read the memory from")
-    return int(statm.read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+def resident_bytes(pid: int) -> int:
+    """The resident memory of process ``pid`` and its descendants, bytes."""
+    if not Path("/proc/self/statm").exists():
+        pytest.skip("no /proc to read the memory from")
+    total = 0
+    for process in _descendants(pid):
+        with contextlib.suppress(OSError):
+            total += int(Path(f"/proc/{process}/statm").read_text().split()[1])
+    return total * os.sysconf("SC_PAGE_SIZE")
 
 
 def overloaded() -> str:
@@ -132,111 +139,112 @@ async def raw_http(port: int, data: bytes) -> int:
 @pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_hostile_inputs_hurt_no_other_client() -> None:
-    async def scenario() -> dict[str, Any]:
-        async with running_service(
-            session_factory(real_face()), real_assets(), limits=ServiceLimits()
-        ) as service:
-            base = f"ws://127.0.0.1:{service.port}"
-            figures: dict[str, Any] = {}
-            async with (
-                connect(f"{base}/view?character=bob") as viewer,
-                connect(f"{base}/bml?format=json&character=bob") as bob,
-                connect(f"{base}/bml?format=json&character=alice") as hostile,
-                connect(f"{base}/bml?character=alice") as alice_xml,
-                connect(f"{base}/bml?format=json&character=alice") as alice_json,
-                connect(f"{base}/view?character=alice") as hostile_viewer,
-            ):
-                assert (await read_json(bob))["type"] == "welcome"
-                assert (await read_json(hostile))["type"] == "welcome"
-                assert (await read_json(alice_json))["type"] == "welcome"
-                # bob's face moves all along: a long nod
-                nod = (
-                    f'<bml xmlns="{BML_NS}" id="nod"><head id="h" lexeme="NOD" '
-                    'repetition="32" start="0" end="30"/></bml>'
-                )
-                await bob.send(nod)
-                assert await until_state(bob, "nod", {"accepted"}) == "accepted"
-                for n in range(3):  # warm up: the first blocks load what they need
-                    await bob.send(smile(f"warm{n}"))
-                    await until_state(bob, f"warm{n}", {"done"})
+    async def scenario(server: ServeProcess) -> dict[str, Any]:
+        base = server.url
+        port = server.port
+        figures: dict[str, Any] = {}
+        async with (
+            connect(f"{base}/view?character=bob") as viewer,
+            connect(f"{base}/bml?format=json&character=bob") as bob,
+            connect(f"{base}/bml?format=json&character=alice") as hostile,
+            connect(f"{base}/bml?character=alice") as alice_xml,
+            connect(f"{base}/bml?format=json&character=alice") as alice_json,
+            connect(f"{base}/view?character=alice") as hostile_viewer,
+        ):
+            assert (await read_json(bob))["type"] == "welcome"
+            assert (await read_json(hostile))["type"] == "welcome"
+            assert (await read_json(alice_json))["type"] == "welcome"
+            # bob's face moves all along: a long nod
+            nod = (
+                f'<bml xmlns="{BML_NS}" id="nod"><head id="h" lexeme="NOD" '
+                'repetition="32" start="0" end="30"/></bml>'
+            )
+            await bob.send(nod)
+            assert await until_state(bob, "nod", {"accepted"}) == "accepted"
+            for n in range(3):  # warm up: the first blocks load what they need
+                await bob.send(smile(f"warm{n}"))
+                await until_state(bob, f"warm{n}", {"done"})
 
-                stop = asyncio.Event()
-                arrivals: list[float] = []
-                frames = asyncio.create_task(count_frames(viewer, arrivals, stop))
-                xml_count, json_count, hostile_count = [0], [0], [0]
-                sentinel_done = asyncio.Event()
-                listeners = [
-                    asyncio.create_task(drain(alice_xml, xml_count)),
-                    asyncio.create_task(drain(alice_json, json_count)),
-                    asyncio.create_task(drain(hostile, hostile_count, sentinel_done)),
-                    asyncio.create_task(drain(hostile_viewer, [0])),
-                ]
-                memory_before = resident_bytes()
-                loop = asyncio.get_running_loop()
+            stop = asyncio.Event()
+            arrivals: list[float] = []
+            frames = asyncio.create_task(count_frames(viewer, arrivals, stop))
+            xml_count, json_count, hostile_count = [0], [0], [0]
+            sentinel_done = asyncio.Event()
+            listeners = [
+                asyncio.create_task(drain(alice_xml, xml_count)),
+                asyncio.create_task(drain(alice_json, json_count)),
+                asyncio.create_task(drain(hostile, hostile_count, sentinel_done)),
+                asyncio.create_task(drain(hostile_viewer, [0])),
+            ]
+            memory_before = resident_bytes(server.process.pid)
+            loop = asyncio.get_running_loop()
 
-                async def attack() -> None:
-                    for message in hostile_messages("alice"):
-                        if message.endpoint == "/bml":
-                            await hostile.send(message.text)
-                        else:
-                            await hostile_viewer.send(message.text)
-                    # the last one's answer says the connection's queue is done
-                    await hostile.send(smile("sentinel", character="alice"))
+            async def attack() -> None:
+                for message in hostile_messages("alice"):
+                    if message.endpoint == "/bml":
+                        await hostile.send(message.text)
+                    else:
+                        await hostile_viewer.send(message.text)
+                # the last one's answer says the connection's queue is done
+                await hostile.send(smile("sentinel", character="alice"))
 
-                latencies: list[float] = []
+            latencies: list[float] = []
 
-                async def measure_bob() -> None:
-                    for n in range(12):
-                        sent = loop.time()
-                        await bob.send(smile(f"b{n}", end=0.05))
-                        await until_state(bob, f"b{n}", {"accepted", "rejected"})
-                        latencies.append(loop.time() - sent)
-                        await asyncio.sleep(0.15)
+            async def measure_bob() -> None:
+                for n in range(12):
+                    sent = loop.time()
+                    await bob.send(smile(f"b{n}", end=0.05))
+                    await until_state(bob, f"b{n}", {"accepted", "rejected"})
+                    latencies.append(loop.time() - sent)
+                    await asyncio.sleep(0.15)
 
-                attacking = asyncio.create_task(attack())
-                await measure_bob()
-                await attacking
-                # the hostile connection's queue is processed when its sentinel is done
-                await asyncio.wait_for(sentinel_done.wait(), 60 * UNIT)
-                stop.set()
-                await frames
-                memory_after = resident_bytes()
-                health = await http_json(service.port, "/health")
+            attacking = asyncio.create_task(attack())
+            await measure_bob()
+            await attacking
+            # the hostile connection's queue is processed when its sentinel is done
+            await asyncio.wait_for(sentinel_done.wait(), 60 * UNIT)
+            stop.set()
+            await frames
+            memory_after = resident_bytes(server.process.pid)
+            health = await http_json(port, "/health")
+            processes = len(_descendants(server.process.pid)) - 1
 
-                gaps = [b - a for a, b in itertools.pairwise(arrivals)]
-                figures.update(
-                    frames=len(arrivals),
-                    max_gap=max(gaps, default=float("inf")),
-                    max_latency=max(latencies),
-                    memory_growth=memory_after - memory_before,
-                    health_gap=health["clock"]["max_frame_gap_seconds"],
-                )
+            gaps = [b - a for a, b in itertools.pairwise(arrivals)]
+            figures.update(
+                frames=len(arrivals),
+                max_gap=max(gaps, default=float("inf")),
+                max_latency=max(latencies),
+                memory_growth=memory_after - memory_before,
+                health_gap=health["clock"]["max_frame_gap_seconds"],
+                processes=processes,
+            )
 
-                # the other listeners of alice are still there and still hear her
-                for ws in (alice_xml, alice_json, hostile, hostile_viewer):
-                    assert ws.close_code is None, ws.close_code
-                assert xml_count[0] > 0 and json_count[0] > 0
-                for task in listeners:
-                    task.cancel()
-                for character in ("alice", "bob", "default"):
-                    async with connect(f"{base}/bml?format=json&character={character}") as ws:
-                        await read_json(ws)
-                        await ws.send(smile(f"after-{character}"))
-                        state = await until_state(ws, f"after-{character}", {"done", "rejected"})
-                        assert state == "done", character
-                for name, _, request, status in HTTP_REQUESTS:
-                    assert await raw_http(service.port, request) == status, name
-            return figures
+            # the other listeners of alice are still there and still hear her
+            for ws in (alice_xml, alice_json, hostile, hostile_viewer):
+                assert ws.close_code is None, ws.close_code
+            assert xml_count[0] > 0 and json_count[0] > 0
+            for task in listeners:
+                task.cancel()
+            for character in ("alice", "bob", "default"):
+                async with connect(f"{base}/bml?format=json&character={character}") as ws:
+                    await read_json(ws)
+                    await ws.send(smile(f"after-{character}"))
+                    state = await until_state(ws, f"after-{character}", {"done", "rejected"})
+                    assert state == "done", character
+            for name, _, request, status in HTTP_REQUESTS:
+                assert await raw_http(port, request) == status, name
+        return figures
 
+    why_before = overloaded()
     began = time.perf_counter()
-    figures = asyncio.run(scenario())
+    with serve_process() as server:  # the deployed default, planner processes included
+        figures = asyncio.run(scenario(server))
     print(f"hostile test figures ({time.perf_counter() - began:.1f} s): {figures}")
     assert figures["frames"] > 30
-    assert figures["memory_growth"] < MEMORY_GROWTH
-    why = overloaded()
+    assert figures["processes"] >= 3, figures  # the fork server and two planners
+    assert figures["memory_growth"] < MEMORY_GROWTH, figures
+    why = why_before or overloaded()
     if why:
         pytest.skip(f"timing not judged: {why}; figures {figures}")
-    if figures["max_gap"] > FRAME_GAP:
-        print(f"frame gap goal of {FRAME_GAP * 1000:.0f} ms not met: {figures['max_gap']:.3f} s")
-    assert figures["max_gap"] <= FRAME_GAP_BOUND, figures
+    assert figures["max_gap"] <= FRAME_GAP, figures
     assert figures["max_latency"] < ACCEPT_LATENCY, figures

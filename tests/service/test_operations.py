@@ -226,3 +226,29 @@ def test_the_readmes_settings_file_is_one_serve_reads(tmp_path: Path) -> None:
     settings = resolve(read_file(config), {}, {})
     assert settings.avatar == str(tmp_path / "avatars" / "doctor.glb")
     assert settings.seed == 7 and settings.idle and settings.limits == {"viewers": 200}
+
+
+def test_planner_processes_come_from_the_file_or_the_flag_and_are_checked(tmp_path: Path) -> None:
+    config = tmp_path / "serve.toml"
+    config.write_text("[serve]\nplanner_processes = 3\n")
+    done = serve("--config", str(config), "--print-config")
+    assert done.returncode == 0, done.stderr
+    assert "planner_processes = 3" in done.stdout
+    threads = serve("--config", str(config), "--planner-processes", "0", "--print-config")
+    assert "planner_processes = 0" in threads.stdout  # 0: the planner threads plan
+    refused = serve("--planner-processes", "99", "--print-config")
+    assert refused.returncode == 2 and "planner_processes" in refused.stderr
+
+
+def test_the_log_filter_reads_a_repeated_upgrade_header_and_the_peer_gets_its_400() -> None:
+    # The filter of realizer serve's log lines read the header with get(),
+    # which raises on a repeated header: the connection was dropped with no
+    # answer, in the deployed configuration only (tests without its logging
+    # got their 400).
+    request = b"GET /health HTTP/1.1\r\nHost: x\r\nUpgrade: a\r\nUpgrade: b\r\n\r\n"
+    with serve_process() as srv, socket.create_connection(("127.0.0.1", srv.port)) as raw:
+        raw.sendall(request)
+        raw.settimeout(10 * UNIT)
+        head = raw.recv(200)
+    assert head.startswith(b"HTTP/1.1 400 "), head
+    assert "Traceback" not in "".join(srv.stderr)
