@@ -142,6 +142,10 @@ DIRECTIONS: dict[str, tuple[float, float]] = {
 DEFAULT_TARGET_ANGLE_DEG = 20.0
 
 
+#: faceLexeme configurations a face engine keeps, (lexeme, amount) pairs.
+LEXEME_CACHE = 256
+
+
 @lru_cache(maxsize=1)
 def load_engine_data() -> dict[str, Any]:
     path = DATA_DIR / "engine.toml"
@@ -256,6 +260,13 @@ class FaceEngine:
     _timings: dict[tuple[str, tuple[str, ...]], TimingModel] = field(
         default_factory=dict, compare=False, repr=False
     )
+    #: (lexeme, amount) -> a faceLexeme's FAP configuration: the lexeme's AUs
+    #: through the FACS mapping once, not once per behaviour (a block of 250
+    #: lexemes spent a third of its realization there); at most
+    #: LEXEME_CACHE entries (amounts are the peer's numbers)
+    _lexeme_faps: dict[tuple[str, float], FapConfiguration] = field(
+        default_factory=dict, compare=False, repr=False
+    )
 
     @classmethod
     def default(cls, limits: FapLimits | None = None) -> FaceEngine:
@@ -355,7 +366,14 @@ class FaceEngine:
                 if not lexeme:
                     raise ConversionError("no lexeme")
                 amount = _number_param(behaviour, "amount", 0.5)
-                return lexeme_faps(lexeme, amount, table=self.lexemes, mapping=self.mapping)
+                found = self._lexeme_faps.get((lexeme, amount))
+                if found is None:
+                    found = lexeme_faps(lexeme, amount, table=self.lexemes, mapping=self.mapping)
+                    if len(self._lexeme_faps) >= LEXEME_CACHE:
+                        self._lexeme_faps.clear()
+                    self._lexeme_faps[(lexeme, amount)] = found
+                # a copy: the arrays of a configuration are the caller's
+                return FapConfiguration(found.values.copy(), found.mask.copy())
             if kind == "faceFacs":
                 au = behaviour.param("au")
                 if au is None or not au.strip().isdigit():

@@ -16,7 +16,9 @@ from __future__ import annotations
 import logging
 
 
-def _warm_up() -> None:
+def warm_up() -> None:
+    """Load what planning loads on first use (a benchmark calls it too, so
+    that it times messages, not imports)."""
     from realizer.scheduler import solver
     from realizer.service import planner  # noqa: F401  (the child's code)
     from realizer.session import Session
@@ -33,6 +35,6 @@ def _warm_up() -> None:
 
 
 try:
-    _warm_up()
+    warm_up()
 except Exception:  # a warm-up is an optimisation: never stop the fork server
     logging.getLogger("realizer.service").exception("planner warm-up failed")
