@@ -14,7 +14,8 @@ for each load (characters x viewers) measures
   the newest), and ticks the server clock skipped;
 * drift: how the fastest delivery changed from the first to the last fifth
   of the run (a clock that drifted would move it; load raises it too);
-* CPU (percent of one core) and resident memory of the server process;
+* CPU (percent of one core) of the server process with its planner processes,
+  and the resident memory of the server process;
 * viewers of int16 vertex deltas, which make the server deform faces;
 * a stalled viewer (never reads, float32 vertex frames): the server's
   memory before and after, with another viewer still served.
@@ -41,6 +42,7 @@ import argparse
 import asyncio
 import base64
 import bisect
+import contextlib
 import itertools
 import json
 import os
@@ -109,10 +111,17 @@ def _drain(stream: IO[bytes]) -> None:
         stream.read()
 
 
+#: ``realizer serve --planner-processes N`` for the servers started here
+#: (None: the default); set by ``run(planner_processes=...)``.
+PLANNER_PROCESSES: int | None = None
+
+
 def start_server(fps: float, extra: list[str]) -> tuple[subprocess.Popen[bytes], int]:
     # No idle motion: a face moves only for a probe block, so the first frame
     # with FAPs set is the one that shows it, and a resting face is unchanged.
     command = [sys.executable, "-m", "realizer", "serve", "--port", "0", "--fps", str(fps)]
+    if PLANNER_PROCESSES is not None:
+        command += ["--planner-processes", str(PLANNER_PROCESSES)]
     process = subprocess.Popen(
         [*command, "--no-idle", *extra],
         cwd=ROOT,
@@ -409,6 +418,17 @@ def analyse(
     )
 
 
+def _cpu_seconds(server: psutil.Process) -> float:
+    """CPU seconds of the server and its descendants (its planner processes,
+    which parse and plan the blocks, and their fork server)."""
+    total = 0.0
+    for process in [server, *server.children(recursive=True)]:
+        with contextlib.suppress(psutil.Error):
+            times = process.cpu_times()
+            total += times.user + times.system
+    return total
+
+
 def run_load(
     characters: int, viewers: int, seconds: float, vertices: str = "none", port: int | None = None
 ) -> Result:
@@ -424,11 +444,11 @@ def run_load(
     process, port = start_server(FPS, limits)
     try:
         server = psutil.Process(process.pid)
-        server.cpu_percent()
+        began, cpu_before = time.monotonic(), _cpu_seconds(server)
         client = psutil.Process()
         client.cpu_percent()
         data = asyncio.run(measure(port, characters, viewers, seconds, vertices))
-        cpu = server.cpu_percent()
+        cpu = 100 * (_cpu_seconds(server) - cpu_before) / (time.monotonic() - began)
         print(f"  ({characters} x {viewers}: client process CPU {client.cpu_percent():.0f}%)")
         status = health(port)
         return analyse(characters, viewers, data, server, cpu, status)
@@ -597,10 +617,17 @@ VIEWER_FORMATS = {"fap": "none", "int16": "int16", "float32": "float32"}
 
 
 def run(
-    quick: bool = False, long: bool = False, port: int | None = None, viewers: str | None = None
+    quick: bool = False,
+    long: bool = False,
+    port: int | None = None,
+    viewers: str | None = None,
+    planner_processes: int | None = None,
 ) -> None:
     """Every load; ``port``: against that running server (no stalled-viewer run, no CPU or
-    memory figures); ``viewers``: only that viewer format (``fap``, ``int16``, ``float32``)."""
+    memory figures); ``viewers``: only that viewer format (``fap``, ``int16``, ``float32``);
+    ``planner_processes``: the servers started here get ``--planner-processes N``."""
+    global PLANNER_PROCESSES
+    PLANNER_PROCESSES = planner_processes
     loads = (
         [(1, 1, 3.0), (10, 100, 4.0)]
         if quick
@@ -615,6 +642,8 @@ def run(
     )
     vertex_loads = [(1, 10, 3.0)] if quick else [(1, 10, 4.0), (10, 20, 4.0), (50, 200, 4.0)]
     where = f"the server on port {port}" if port is not None else "a server started here"
+    if port is None and planner_processes is not None:
+        where += f" with --planner-processes {planner_processes}"
     print(f"service load on loopback, {FPS:g} fps, {os.cpu_count()} CPUs, {where}")
     formats = ["fap", "int16"] if viewers in (None, "all") else [viewers]
     for name in formats:
@@ -642,5 +671,12 @@ if __name__ == "__main__":
     parser.add_argument("--long", action="store_true", help="add a 10-minute drift run")
     parser.add_argument("--port", type=int, help="measure the server listening on this port")
     parser.add_argument("--viewers", choices=("all", *VIEWER_FORMATS), help="viewer format")
+    parser.add_argument("--planner-processes", type=int, help="realizer serve's option")
     options = parser.parse_args()
-    run(quick=options.quick, long=options.long, port=options.port, viewers=options.viewers)
+    run(
+        quick=options.quick,
+        long=options.long,
+        port=options.port,
+        viewers=options.viewers,
+        planner_processes=options.planner_processes,
+    )

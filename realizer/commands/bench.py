@@ -5,7 +5,7 @@ defines ``run(quick: bool = False) -> None`` and prints its figures and
 ratios, recording its headline figures through ``benchmarks/_timing.py``'s
 ``figure`` so that ``--json FILE`` can write them for a machine to compare
 (format in ``benchmarks/README.md``). Options an area's ``run`` takes as
-keyword arguments (``port``, ``viewers`` for the service) are passed to the
+keyword arguments (``port``, ``viewers``, ``planner_processes`` for the service) are passed to the
 areas that take them. Timings are printed, never asserted.
 """
 
@@ -59,6 +59,12 @@ def register(subparsers: Any) -> None:
         choices=("all", "fap", "int16", "float32"),
         help="service: which viewer format to load the server with (default: fap, then int16)",
     )
+    parser.add_argument(
+        "--planner-processes",
+        type=int,
+        metavar="N",
+        help="service: start the server with --planner-processes N (0: planner threads)",
+    )
     parser.set_defaults(run=run)
 
 
@@ -92,7 +98,11 @@ def run(args: argparse.Namespace) -> int:
     # import the same module object here to collect what they record.
     sys.path.insert(0, str(benchmarks_dir()))
     timing = importlib.import_module("_timing")
-    extras = {"port": args.port, "viewers": args.viewers}
+    extras = {
+        "port": args.port,
+        "viewers": args.viewers,
+        "planner_processes": args.planner_processes,
+    }
     report: dict[str, Any] = {
         "format": "realizer-bench/1",
         "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),

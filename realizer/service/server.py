@@ -389,10 +389,12 @@ class RealizerService:
         self._scene_version = -1  # the scene version the viewers were last sent
         self._stopping = False
         self._static = _StaticFiles()
-        # The clock never waits for a submitter: parsing and planning run on
-        # these threads, one message per connection at a time (in order);
-        # the stage's lock per character keeps each session single-threaded
-        # and lets the clock skip, not wait for, a character being planned.
+        # The clock never waits for a submitter: each message is handled on
+        # one of these threads, one message per connection at a time (in
+        # order), which parse and plan in planner processes (by default) or
+        # themselves; the stage's lock per character keeps each session
+        # single-threaded and lets the clock skip, not wait for, a character
+        # being admitted or committed.
         self._planner = ThreadPoolExecutor(
             max_workers=config.planner_threads, thread_name_prefix="realizer-planner"
         )
