@@ -30,6 +30,14 @@ still open :data:`END_GRACE_SECONDS` after its predicted end (or after an
 interrupt) is failed. Warnings about one block in one answer are bounded
 (``ServiceLimits.warnings_per_block``).
 
+Where a block is parsed and planned: with a ``planner``
+(:class:`BlockPlanner`, realizer.service.planner's pool of planner
+processes) the stage leases one for each submission, which parses the text
+and, once the session has admitted the block (on the caller's side, the
+character's lock held), plans it (:meth:`realizer.session.Session.plan_bml`);
+the session then commits the plan. Without one, the calling thread does
+both. The stage itself starts no process and reads no clock.
+
 Time given to sessions never goes backwards: a BML document that arrives
 between the due time of a frame and the moment the clock computes it is
 received at its arrival time, and that frame is then computed at the same
