@@ -619,7 +619,8 @@ def test_a_gateway_behind_on_frames_sends_each_viewer_the_newest_not_the_backlog
         def __init__(self) -> None:
             self.frames: list[bytes] = []
 
-        def offer(self, frame: bytes, write_limit: int = 0) -> None:
+        def offer(self, frame: bytes, write_limit: int = 0, wire: bytes | None = None) -> None:
+            assert wire is None or wire.endswith(frame)  # the WebSocket frame of these bytes
             self.frames.append(frame)
 
     class Message:

@@ -83,6 +83,7 @@ from realizer.service.server import (
     Submitter,
     Viewer,
     _render,
+    binary_frame,
 )
 from realizer.service.stage import BlockEvent, Outgoing, Stage, WireFeedback
 
@@ -523,8 +524,12 @@ class ClusterGateway(RealizerService):
         for (character, key), frames in newest.items():
             viewers = self.by_format.get(character, {}).get(key, ())
             for data, due in frames:
+                # The WebSocket frame's bytes once for all viewers of this
+                # format (Viewer.offer writes them as they are), the frame's
+                # own bytes as the owner encoded them: never decoded here.
+                wire = binary_frame(data) if viewers else None
                 for viewer in viewers:
-                    viewer.offer(data, WRITE_LIMIT)
+                    viewer.offer(data, WRITE_LIMIT, wire)
                 if due:
                     written.add(asyncio.get_running_loop().time() - due)
 
