@@ -151,7 +151,7 @@ def run_cluster_load(
 
 #: The steps each role times (/health "timings"), in the order of a block's way.
 STEPS = {
-    "gateway": ("forward", "frame_written"),
+    "gateway": ("forward", "frame_received", "frame_written"),
     "worker": ("request", "plan", "lease_write", "frame_published"),
 }
 

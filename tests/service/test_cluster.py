@@ -312,8 +312,10 @@ def test_a_submitter_on_one_gateway_and_a_viewer_on_the_other_see_the_block(clus
     assert all(worker_timings[step]["count"] >= 1 for step in ("request", "plan", "lease_write"))
     assert worker_timings["frame_published"]["count"] >= 5
     assert health(gate_a.port)["timings"]["forward"]["count"] == 1
-    written = health(gate_b.port)["timings"]["frame_written"]
+    timings = health(gate_b.port)["timings"]
+    received, written = timings["frame_received"], timings["frame_written"]
     assert written["count"] >= 5 and 0 < written["p50_seconds"] <= written["max_seconds"]
+    assert received["count"] >= written["count"] and received["p50_seconds"] > 0
 
 
 @pytest.mark.slow

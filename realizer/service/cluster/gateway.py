@@ -167,10 +167,12 @@ class ClusterGateway(RealizerService):
         #: per submitter, the last forwarding task of each character
         self._lanes: dict[Submitter, dict[str, asyncio.Task[None]]] = {}
         #: forward: a bml message's arrival -> the owner's reply (the block
-        #: accepted or refused); frame_written: a frame's due time on its
-        #: owner's clock -> written to the last viewer here (owners on this
-        #: host only)
-        self.timings = {name: Durations() for name in ("forward", "frame_written")}
+        #: accepted or refused); frame_received, frame_written: a frame's due
+        #: time on its owner's clock -> read from NATS here, -> written to
+        #: the last viewer here (owners on this host only)
+        self.timings = {
+            name: Durations() for name in ("forward", "frame_received", "frame_written")
+        }
         self._fan_out_due = False
         self._frame_subscriptions: dict[str, Subscription] = {}
         self._want_changed = asyncio.Event()
@@ -488,6 +490,8 @@ class ClusterGateway(RealizerService):
             return
         self.frames_received += 1
         frame = (msg.data, self._due(key[0], msg.data))
+        if frame[1]:
+            self.timings["frame_received"].add(asyncio.get_running_loop().time() - frame[1])
         kept = self._newest.get(key)
         if kept is None:
             self._newest[key] = [frame]
