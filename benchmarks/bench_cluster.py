@@ -328,17 +328,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="3 s loads, 3 takeovers")
     parser.add_argument(
-        "--load",
-        action="append",
-        default=[],
-        metavar="CxV",
-        help="characters x viewers, e.g. 10x100 (repeatable; default 10x100 and 50x200)",
+        "--load", nargs="+", default=["10x100", "50x200"], help="CxV: characters x viewers"
     )
     parser.add_argument("--pairs", type=int, default=1, help="serve/cluster pairs of each load")
     parser.add_argument("--no-takeover", action="store_true", help="skip the takeover times")
     args = parser.parse_args()
     loads = [(int(c), int(v)) for c, v in (text.lower().split("x") for text in args.load)]
-    run(args.quick, loads or None, max(1, args.pairs), not args.no_takeover)
+    run(args.quick, loads, max(1, args.pairs), not args.no_takeover)
 
 
 if __name__ == "__main__":
