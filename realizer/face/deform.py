@@ -661,7 +661,10 @@ class FaceRig:
         (FAPs 1 and 2) are ignored and negative values of unidirectional
         FAPs count as 0 (see :func:`realizer.face.faps.clamp_unidirectional`).
         """
-        rows, pose = self._frame(fap_vector)
+        values = _values(fap_vector)
+        if not values.any():
+            return self._neutral_points()
+        rows, pose = self._frame(values)
         if not np.array_equal(pose, np.eye(4)):
             rows = _moved_rows(rows, pose[:3, :3], pose[:3, 3])
         return _as_points(rows)
@@ -674,13 +677,19 @@ class FaceRig:
         head pose separately and let the GPU apply the pose (FAPs 48-50 then
         cost nothing per vertex).
         """
-        rows, pose = self._frame(fap_vector)
+        values = _values(fap_vector)
+        if not values.any():
+            return self._neutral_points(), np.eye(4)
+        rows, pose = self._frame(values)
         return _as_points(rows), pose
 
-    def _frame(self, fap_vector: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(3, n) float32 coordinates before the pose, and the pose."""
-        values = clamp_unidirectional(as_fap_vector(fap_vector))
-        values[:2] = 0.0
+    def _neutral_points(self) -> np.ndarray:
+        """A new (n, 3) float32 copy of the neutral face (no FAP set)."""
+        return np.array(self.neutral, dtype=np.float32, order="C")
+
+    def _frame(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(3, n) float32 coordinates before the pose, and the pose, for
+        FAP ``values`` as :func:`_values` makes them."""
         out = self._neutral_t.copy()
         flat = out.reshape(-1)
         if self._has_influence:
@@ -770,6 +779,14 @@ class FaceRig:
             return out
         out[:, group.indices] = _moved_rows(np.take(out, group.indices, axis=1), matrix, offset)
         return out
+
+
+def _values(fap_vector: np.ndarray) -> np.ndarray:
+    """The FAP vector as deformation reads it: FAPs 1 and 2 and negative
+    values of unidirectional FAPs count as 0."""
+    values = clamp_unidirectional(as_fap_vector(fap_vector))
+    values[:2] = 0.0
+    return values
 
 
 def _soa_rows(rows: np.ndarray, n: int) -> np.ndarray:

@@ -1,0 +1,80 @@
+"""Render the default face's lower-face fixes before and after, one sheet.
+
+Writes ``docs/images/lower_face_before_after.png``: a row for an earlier
+face file (``--before``, e.g. the shipped files of an older commit, written
+out with ``git show``) and a row for the face in this checkout, each tile a
+pose of the jaw, chin, cheeks, nose wings or lips close up (profile views
+for motion along the depth axis), with the same renderer. Run from the
+repository root:
+
+    git show 28acb96:realizer/face/data/default_face/default_face.npz > /tmp/old/default_face.npz
+    git show 28acb96:realizer/face/data/default_face/default_face.xml > /tmp/old/default_face.xml
+    .venv/bin/python scripts/render_lower_face.py --before /tmp/old/default_face
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+# run from a checkout: the repository's package wins over an installed one
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+#: label, close-up region (realizer fap-sheet's), view, FAP values
+POSES: tuple[tuple[str, str, str, dict[int, float]], ...] = (
+    ("open_jaw 512 (side)", "mouth", "left", {3: 512}),
+    ("shift_jaw 128 (side)", "mouth", "left", {15: 128}),
+    ("depress_chin -512", "mouth", "left", {18: -512}),
+    ("puff cheeks 96 (side)", "cheeks", "left", {39: 96, 40: 96}),
+    ("stretch nose 96", "cheeks", "front", {61: 96, 62: 96}),
+    ("raise_b_lip_lm 800", "mouth", "front", {10: 800}),
+    ("lower_t_lip_lm -800", "mouth", "front", {8: -800}),
+)
+
+
+def main() -> None:
+    from realizer.commands.fap_sheet import region_framing
+    from realizer.face.default import load_default_face
+    from realizer.face.deform import deform
+    from realizer.face.paramfile import load_face
+    from realizer.face.render import FaceRenderer
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--before", required=True, help="the earlier face file (STEM)")
+    parser.add_argument("--out", type=Path, default=Path("docs/images/lower_face_before_after.png"))
+    parser.add_argument("--tile", type=int, default=200)
+    args = parser.parse_args()
+    faces = {"before": load_face(args.before), "after": load_default_face()}
+    tile, label_width, header = args.tile, 56, 18
+    sheet = Image.new("RGB", (label_width + tile * len(POSES), header + 2 * tile), (24, 24, 24))
+    draw = ImageDraw.Draw(sheet)
+    for column, (label, *_) in enumerate(POSES):
+        draw.text((label_width + column * tile + 4, 3), label, fill=(230, 230, 230))
+    for row, (name, face) in enumerate(faces.items()):
+        draw.text((4, header + row * tile + tile // 2), name, fill=(230, 230, 230))
+        renderers: dict[str, FaceRenderer] = {}
+        try:
+            for column, (_, region, view, values) in enumerate(POSES):
+                if region not in renderers:
+                    framing = region_framing(face, region)
+                    renderers[region] = FaceRenderer(face, tile, tile, framing=framing)
+                vector = np.zeros(68)
+                for fap, value in values.items():
+                    vector[fap - 1] = value
+                image = renderers[region].render(deform(face, vector), view=view)
+                corner = (label_width + column * tile, header + row * tile)
+                sheet.paste(Image.fromarray(image), corner)
+        finally:
+            for renderer in renderers.values():
+                renderer.close()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    sheet.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(args.out, optimize=True)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
