@@ -17,10 +17,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-from realizer.commands import plain_text
 
 if TYPE_CHECKING:
     import numpy as np
@@ -147,15 +144,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: Any) -> None:
-    parser = subparsers.add_parser(
+    from realizer.commands.fap_sheet import add_sheet_parser
+
+    parser = add_sheet_parser(
+        subparsers,
         "expressions",
-        help="render emotions, FAP 2 expressions, visemes and AUs on one sheet (PNG)",
-        description=plain_text(__doc__.split("\n\n")[0]) if __doc__ else None,
+        "render emotions, FAP 2 expressions, visemes and AUs on one sheet (PNG)",
+        __doc__,
+        192,
+        "tile size in pixels",
     )
-    parser.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
-    parser.add_argument(
-        "--face",
-        help="a face file (STEM, STEM.npz or STEM.xml); default: the built-in default face",
-    )
-    parser.add_argument("--tile", type=int, default=192, help="tile size in pixels")
     parser.set_defaults(run=run)

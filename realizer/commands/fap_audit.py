@@ -8,6 +8,12 @@ FAP leaves the other side, and whether the motion is large enough to see
 (:mod:`realizer.face.audit`). ``--range`` checks the jaw, lip, cheek and
 nose FAPs at a quarter, half, three quarters and all of their practical
 range (``PRACTICAL_RANGE``) instead. Exits 1 when any displacement fails.
+
+``--scores`` prints instead the weighted score of the thesis's evaluation by
+eye ("Realization and high level specification of facial expressions for
+embodied agents", section 4.4) from the default face's scores
+(:mod:`realizer.face.evaluation`); ``--scores --every`` also lists every
+displacement that scored below 3 with what was seen.
 """
 
 from __future__ import annotations
@@ -19,6 +25,11 @@ from realizer.commands import load_face_option, plain_text
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.scores:
+        from realizer.face.evaluation import format_scores, load_scores
+
+        print(format_scores(load_scores(), every=args.every))
+        return 0
     from realizer.commands.fap_sheet import load_sheet_entries
     from realizer.face.audit import audit_face, audit_range, format_audit
 
@@ -46,5 +57,13 @@ def register(subparsers: Any) -> None:
         "--range",
         action="store_true",
         help="the jaw, lip, cheek and nose FAPs at 1/4..1 of their practical range instead",
+    )
+    parser.add_argument(
+        "--scores",
+        action="store_true",
+        help="print the default face's scores by eye (thesis section 4.4) and their weighted mean",
+    )
+    parser.add_argument(
+        "--every", action="store_true", help="with --scores: list each displacement below 3"
     )
     parser.set_defaults(run=run)

@@ -275,19 +275,31 @@ def run(args: argparse.Namespace) -> int:
     )
 
 
-def register(subparsers: Any) -> None:
+def add_sheet_parser(
+    subparsers: Any, name: str, help_: str, doc: str | None, tile: int, tile_help: str
+) -> Any:
+    """The sub-command ``name`` of a sheet command, with the options every
+    sheet has: ``-o``, ``--face`` and ``--tile`` (default ``tile``)."""
     parser = subparsers.add_parser(
-        "fap-sheet",
-        help="render every FAP 3..68 of a face on one contact sheet (PNG)",
-        description=plain_text(__doc__.split("\n\n")[0]) if __doc__ else None,
+        name, help=help_, description=plain_text(doc.split("\n\n")[0]) if doc else None
     )
     parser.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
     parser.add_argument(
         "--face",
         help="a face file (STEM, STEM.npz or STEM.xml); default: the built-in default face",
     )
-    parser.add_argument(
-        "--tile", type=int, default=256, help="tile size in pixels (256: lid and lip defects show)"
+    parser.add_argument("--tile", type=int, default=tile, help=tile_help)
+    return parser
+
+
+def register(subparsers: Any) -> None:
+    parser = add_sheet_parser(
+        subparsers,
+        "fap-sheet",
+        "render every FAP 3..68 of a face on one contact sheet (PNG)",
+        __doc__,
+        256,
+        "tile size in pixels (256: lid and lip defects show)",
     )
     parser.add_argument(
         "--close-up",
