@@ -109,6 +109,14 @@ NOSE_TIP_CLEAR_M = 0.008
 
 #: Intervals of the eyelid-closing tables (FAPs 19, 20) along the blink's arc.
 BLINK_STEPS = 6
+#: How far the upper lid's margin follows the eyeball's front as the eye
+#: pitches down and up, and the lower lid's share (both directions).
+LID_FOLLOW_DOWN = 0.85
+LID_FOLLOW_UP = 0.5
+LOWER_LID_FOLLOW = 0.25
+#: The pitch's upper-lid table follows the first steps of the blink (3.1
+#: half way down, at a pitch of about 0.6 rad; beyond, the last slope goes on).
+PITCH_BLINK_STEPS = 3
 
 #: Eyeball tessellation: rings from the front pole to the back pole, and
 #: segments around the z axis.
@@ -742,6 +750,7 @@ def shape_table(
     borders: tuple[float, ...],
     slopes: list[FloatArray],
     keep: IntArray,
+    min_motion: float = MIN_TABLE_MOTION,
 ) -> Any:
     """A FaceDefMesh from per-interval displacements (intervals, n, 3) in FAPU
     per FAP unit, for the vertices ``keep``, rounded to 0.01 % of a FAPU."""
@@ -749,8 +758,9 @@ def shape_table(
 
     stack = np.stack(slopes, axis=1)[keep]  # (k, intervals, 3)
     # Stored as float16 (paramfile's compact encoding): vertices moving less
-    # than MIN_TABLE_MOTION of their feature point are left out.
-    keep_rows = np.abs(stack).max(axis=(1, 2)) >= MIN_TABLE_MOTION
+    # than MIN_TABLE_MOTION of their feature point are left out (min_motion:
+    # that share of a table whose feature point does not move one FAPU).
+    keep_rows = np.abs(stack).max(axis=(1, 2)) >= min_motion
     values = stack[keep_rows].astype(np.float16).astype(np.float64)
     return FaceDefMesh(
         fap=fap,
@@ -1552,6 +1562,38 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         )
         borders = tuple(round(b, 1) for b in borders)
         deformers.append(shape_table(fap_top, borders, [negative, *positive], moved))
+        # The lids follow the eyeball's pitch (25, 26; positive = down): the
+        # upper lid along the same blink and widen paths, its margin 3.1
+        # moving LID_FOLLOW_DOWN (LID_FOLLOW_UP) of the arc the eyeball's
+        # front moves, so a downward gaze does not bare the sclera above the
+        # iris and an upward one does not tuck the iris under a still lid.
+        radius = float(np.linalg.norm(v[head.part(f"eye_{side}")] - centre, axis=1).mean())
+        fap_pitch = 25 if side == "l" else 26
+        follow_down = LID_FOLLOW_DOWN * radius  # metres of 3.1 per radian
+        follow_up = LID_FOLLOW_UP * radius
+        # a pitch unit is 1e-5 rad (AU): 3.1 moves follow x 1e-5 m per unit,
+        # i.e. `follow` AU-FAPU; the blink's borders (IRISD units) scale by
+        # fapu_irisd / (follow x 1e-5)
+        pitch_borders = (
+            -1000.0,
+            0.0,
+            *(
+                round(float(d) * fapu_irisd / (follow_down * 1e-5), 1)
+                for d in drops[:PITCH_BLINK_STEPS]
+            ),
+        )
+        deformers.append(
+            shape_table(
+                fap_pitch,
+                pitch_borders,
+                [
+                    negative * follow_up,
+                    *(slope * follow_down for slope in positive[:PITCH_BLINK_STEPS]),
+                ],
+                moved,
+                MIN_TABLE_MOTION * follow_up,
+            )
+        )
         # The lower lid: eyeSquint* along the same kind of arc, 3.3 rising one
         # FAPU per unit at each border (beyond the target: its last slope).
         lift = dense_offsets(targets[squint], to_head, n_all) * METRES_PER_UNIT
@@ -1575,10 +1617,30 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
                 lifted,
             )
         )
+        # ... and the lower lid follows the pitch too, less (LOWER_LID_FOLLOW):
+        # up with an upward gaze along the squint's path, down with a
+        # downward one along the same path back.
+        follow_low = LOWER_LID_FOLLOW * radius
+        low_borders = tuple(
+            round(-float(r) * fapu_irisd / (follow_low * 1e-5), 1) for r in rises[::-1]
+        )
+        deformers.append(
+            shape_table(
+                fap_pitch,
+                (*low_borders, 0.0, 1000.0),
+                [
+                    -raise_[2] * follow_low,
+                    -raise_[1] * follow_low,
+                    -raise_[0] * follow_low,
+                    -raise_[0] * follow_low,
+                ],
+                lifted,
+                MIN_TABLE_MOTION * follow_low,
+            )
+        )
         # Eyeball thrust (27, 28) carries the lids and the socket's skin
         # forward with the ball (full within 3 mm of its surface, fading out
         # by 15 mm), so a thrust eyeball does not push through its lids.
-        radius = float(np.linalg.norm(v[head.part(f"eye_{side}")] - centre, axis=1).mean())
         gap = np.linalg.norm(v - centre, axis=1) - radius
         around = np.setdiff1d(np.flatnonzero(gap < 0.015), eyeballs)
         weight = np.clip((0.015 - gap) / 0.012, 0.0, 1.0)
