@@ -30,6 +30,8 @@ REGIONS = {
     "inner brows": (("4.1", "4.2"), 0.004),
     "brows": (("4.1", "4.2", "4.3", "4.4", "4.5", "4.6"), 0.004),
     "upper lids": (("3.1", "3.2"), 0.004),
+    "upper lid margins": (("3.1", "3.2"), 0.0008),
+    "lower lid margins": (("3.3", "3.4"), 0.0008),
     "lip corners": (("2.4", "2.5", "8.3", "8.4"), 0.004),
     "upper lip": (("2.2",), 0.0012),
     "lower lip": (("2.3",), 0.0012),
@@ -107,3 +109,83 @@ def test_guilty_raises_the_inner_brows_and_lowers_the_lip_corners(face: Face) ->
     guilty = pose(face, "guilty")
     assert region_motion(face, guilty, "inner brows")[1] > 2.0
     assert region_motion(face, guilty, "lip corners")[1] < -1.0
+
+
+def test_joyful_raises_the_lower_lids_and_parts_the_lips_without_shutting_the_eyes(
+    face: Face,
+) -> None:
+    """Joy 1 (the default since joy 2 shut the eyes to slits on this face):
+    the lower lids rise (the cheeks push them up), the upper lids do not
+    come down and the lips part over the teeth. (The lip corners' lift is
+    not asserted: Joy's stretch, F6/F53 at 200 MW, pulls them out 13 mm and
+    down about as far as F12 raises them on this face; the stretch tables
+    are the mouth's, see the evaluation's remarks.)"""
+    joyful = pose(face, "joyful")
+    assert region_motion(face, joyful, "lower lid margins")[1] > 1.5
+    assert region_motion(face, joyful, "upper lid margins")[1] > 0.0
+    assert region_motion(face, joyful, "upper lip")[1] > 1.5
+    # the eye stays more than half open (9 mm at rest)
+    opening = joyful[face.feature_vertex("3.1"), 1] - joyful[face.feature_vertex("3.3"), 1]
+    assert opening > 0.6 * (face.feature_position("3.1")[1] - face.feature_position("3.3")[1])
+
+
+def test_angry_glares_under_the_lowered_brows(face: Face) -> None:
+    """The addition from Anger 1: upper lids raised, lower lids tightened."""
+    angry = pose(face, "angry")
+    assert region_motion(face, angry, "upper lid margins")[1] > 1.0
+    assert region_motion(face, angry, "lower lid margins")[1] > 1.0
+    assert region_motion(face, angry, "brows")[1] < -2.0
+
+
+def test_sad_draws_the_inner_brows_together(face: Face) -> None:
+    sad = pose(face, "sad")
+    assert region_motion(face, sad, "inner brows")[0] > 0.5
+    assert region_motion(face, sad, "inner brows")[1] > 2.0
+
+
+def expression(face: Face, number: int) -> np.ndarray:
+    from realizer.face.convert.visemes import FAP12_MAX, expression_faps
+
+    values = expression_faps(number, FAP12_MAX).values.copy()
+    return np.asarray(deform(face, values), dtype=np.float64)
+
+
+def mouth_opening(face: Face, vertices: np.ndarray) -> float:
+    """mm between the inner lip midpoints."""
+    return float(
+        (vertices[face.feature_vertex("2.2"), 1] - vertices[face.feature_vertex("2.3"), 1]) * 1000
+    )
+
+
+def test_fap2_sadness_lowers_the_lip_corners_and_raises_the_inner_brows(face: Face) -> None:
+    sad = expression(face, 2)
+    assert region_motion(face, sad, "lip corners")[1] < -2.5
+    assert region_motion(face, sad, "inner brows")[1] > 5.0
+    assert region_motion(face, sad, "upper lid margins")[1] < -1.0
+
+
+def test_fap2_anger_lowers_the_brows_without_crushing_them_onto_the_lids(face: Face) -> None:
+    """Lowered 3 to 7.5 mm (at 10 mm and more the brow skin folded onto the lid in a
+    zig-zag crease), drawn together, with the glare."""
+    angry = expression(face, 3)
+    down = region_motion(face, angry, "brows")[1]
+    assert -7.5 < down < -3.0
+    assert region_motion(face, angry, "inner brows")[0] > 2.0
+    assert region_motion(face, angry, "upper lid margins")[1] > 1.0
+
+
+def test_fap2_fear_raises_the_brows_opens_the_eyes_and_the_mouth(face: Face) -> None:
+    fear = expression(face, 4)
+    assert region_motion(face, fear, "inner brows")[1] > 8.0
+    assert region_motion(face, fear, "upper lid margins")[1] > 2.0
+    assert mouth_opening(face, fear) > 4.0
+
+
+def test_fap2_disgust_raises_the_upper_lip_wrinkles_the_nose_and_narrows_the_eyes(
+    face: Face,
+) -> None:
+    disgust = expression(face, 5)
+    assert region_motion(face, disgust, "upper lip")[1] > 2.5
+    assert region_motion(face, disgust, "nose wings")[1] > 1.5
+    assert region_motion(face, disgust, "lower lid margins")[1] > 1.0
+    assert region_motion(face, disgust, "brows")[1] < -1.5

@@ -268,7 +268,7 @@ def test_wheel_points_wrap_around_zero() -> None:
     # between joy (323.4) and fear (70.3) on the measured wheel
     a = converter.for_point(10, 4.0)
     b = converter.for_point(370, 4.0)
-    assert a.sources == ("Joy 2", "Fear 8") and a.as_dict() == b.as_dict()
+    assert a.sources == ("Joy 1", "Fear 8") and a.as_dict() == b.as_dict()
 
 
 def test_profiles_can_be_chosen_by_their_table_5_number() -> None:
