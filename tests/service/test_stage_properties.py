@@ -13,20 +13,26 @@ After every step it checks that
 
 and, once the clock has passed every block's end, that nothing is open.
 
-CI runs a bounded number of examples (a few seconds); for a long run by
+The same property holds with blocks parsed and planned in a planner process
+(realizer.service.planner, the service's default), on a third as many
+examples. CI runs a bounded number of examples (a few seconds); for a long run by
 hand set ``REALIZER_PROPERTY_EXAMPLES``, e.g. to 2000.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from typing import Any
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from lxml import etree
 
+from realizer.service.assets import session_factory
 from realizer.service.limits import ServiceLimits
+from realizer.service.planner import PlannerPool, PlanningRecipe
 from realizer.service.stage import BlockEvent, Stage, WireFeedback
 from realizer.session import Session
 
@@ -135,7 +141,33 @@ def check_stage(stage: Stage, model: Model) -> None:
 )
 @given(st.lists(operations, max_size=14))
 def test_every_accepted_block_ends_exactly_once(steps: list[tuple[str, Any, Any]]) -> None:
-    stage = Stage(lambda c: Session(c), ServiceLimits(queued_blocks=QUEUED))
+    run_steps(Stage(lambda c: Session(c), ServiceLimits(queued_blocks=QUEUED)), steps)
+
+
+@pytest.fixture(scope="module")
+def planner_pool() -> Iterator[PlannerPool]:
+    pool = PlannerPool(1, PlanningRecipe(), ServiceLimits().planning_milliseconds)
+    try:
+        yield pool
+    finally:
+        pool.close()
+
+
+@settings(
+    max_examples=max(1, EXAMPLES // 3),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(st.lists(operations, max_size=14))
+def test_every_accepted_block_ends_exactly_once_with_a_planner_process(
+    planner_pool: PlannerPool, steps: list[tuple[str, Any, Any]]
+) -> None:
+    stage = Stage(session_factory(None), ServiceLimits(queued_blocks=QUEUED), planner=planner_pool)
+    run_steps(stage, steps)
+
+
+def run_steps(stage: Stage, steps: list[tuple[str, Any, Any]]) -> None:
+    """Drive ``stage`` through ``steps``, checking the invariant after each."""
     model = Model()
     now = 0.0
     for kind, first, second in steps:
