@@ -44,6 +44,7 @@ service's own objects.
 from __future__ import annotations
 
 import contextlib
+import copy
 import io
 import logging
 import multiprocessing
@@ -349,13 +350,24 @@ class PlannerLease:
         needs_scene = scene is not None and any(b.type in _SCENE_TYPES for b in block.behaviours)
         sent = replace(admitted, earlier=(), external=admitted.external_times())
         _, value = self._call(
-            ("plan", sent, character_id, scene if needs_scene else None),
+            ("plan", sent, character_id, _snapshot(scene) if needs_scene else None),
             f"planning block {block.id!r}",
         )
         notes, plan, predicted, events, animations, audio, owned, engine_notes = value
         return PlannedBlock(
             admitted, notes, plan, predicted, events, animations, audio, owned, engine_notes
         )
+
+
+def _snapshot(scene: Any) -> Any:
+    """A copy of the scene to send: another thread may place a target while
+    it is copied (a dict changing size), so the copy is tried again."""
+    for _ in range(4):
+        try:
+            return copy.deepcopy(scene)
+        except RuntimeError:
+            continue
+    return copy.deepcopy(scene)
 
 
 class PlannerPool:
