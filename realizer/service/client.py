@@ -255,7 +255,7 @@ def endpoint_url(base: str, path: str, params: dict[str, str | None]) -> str:
 class SubmitterProtocol:
     """What a submitter client says and how it reads the answers; no I/O.
 
-    :meth:`bml` and :meth:`interrupt` give the text to send; :meth:`read`
+    :meth:`bml`, :meth:`interrupt` and :meth:`target` give the text to send; :meth:`read`
     turns a received text into a JSON object, and :meth:`follows` tells
     whether a message belongs to the block being run.
     """
@@ -273,6 +273,14 @@ class SubmitterProtocol:
         if character is not None:
             message["character"] = character
         return json.dumps(message)
+
+    @staticmethod
+    def target(name: str, position: tuple[float, float, float]) -> str:
+        """Add or move the scene target ``name`` to ``position`` (x, y, z in
+        metres; protocols/scene.md): the scene is the server's, shared by
+        every character, and behaviours aimed at it follow from now on."""
+        x, y, z = (float(v) for v in position)
+        return json.dumps({"type": "target", "name": name, "position": [x, y, z]})
 
     @staticmethod
     def read(data: str | bytes) -> dict[str, Any]:
@@ -383,6 +391,12 @@ class SubmitClient(_Connected):
     def interrupt(self, block_id: str, *, character: str | None = None) -> None:
         """Ask the server to interrupt ``block_id``; its ``interrupted`` state follows."""
         self._send(SubmitterProtocol.interrupt(block_id, character))
+
+    def target(self, name: str, position: tuple[float, float, float]) -> None:
+        """Add or move the scene target ``name`` (x, y, z metres); gaze and
+        pointing aimed at it follow it from now on (a bad one is answered
+        with a ``NO_SUCH_TARGET`` warning)."""
+        self._send(SubmitterProtocol.target(name, position))
 
     def receive(self, timeout: float | None = None) -> dict[str, Any]:
         """The next message as its JSON object; TimeoutError after ``timeout``
@@ -624,6 +638,9 @@ class AsyncSubmitClient(_AsyncConnected):
 
     async def interrupt(self, block_id: str, *, character: str | None = None) -> None:
         await self._send(SubmitterProtocol.interrupt(block_id, character))
+
+    async def target(self, name: str, position: tuple[float, float, float]) -> None:
+        await self._send(SubmitterProtocol.target(name, position))
 
     async def receive(self, timeout: float | None = None) -> dict[str, Any]:
         return SubmitterProtocol.read(await self._recv(timeout))

@@ -121,3 +121,25 @@ test("feedback XML and msgpack are read without a DOM", () => {
   assert.deepEqual([...decoded.b], [7, 8]);
   assert.throws(() => decodeMsgpack(Uint8Array.from([0xdd, 0xff, 0xff, 0xff, 0xff])), ClientError);
 });
+
+test("a target the client places is one a gaze can aim at", async () => {
+  const client = await SubmitClient.connect(URL_, { character: "Gus", WebSocket });
+  const gaze = (id) => '<bml xmlns="http://www.bml-initiative.org/bml/bml-1.0" id="' + id + '">'
+    + '<gaze id="g" target="jsdoor" influence="EYES" start="0" end="0.3"/></bml>';
+  const warnings = async (id) => {
+    const seen = [];
+    client.submit(gaze(id));
+    for await (const event of client.events(30000 * UNIT)) {
+      if (event.type === "feedback" && event.kind === "warning") seen.push(String(event.xml));
+      if (event.type === "block" && event.blockId === id && event.final) break;
+    }
+    return seen.filter((xml) => xml.includes("NO_SUCH_TARGET"));
+  };
+  try {
+    assert.equal((await warnings("before")).length, 1);  // no such target yet
+    client.target("jsdoor", [2, 0, 1]);
+    assert.deepEqual(await warnings("after"), []);
+  } finally {
+    client.close();
+  }
+});

@@ -85,4 +85,4 @@ def test_the_javascript_client_against_a_real_server(websocket: str) -> None:
             timeout=300,
         )
     assert done.returncode == 0, done.stdout[-6000:] + done.stderr[-3000:]
-    assert "# fail 0" in done.stdout and "# pass 5" in done.stdout, done.stdout[-3000:]
+    assert "# fail 0" in done.stdout and "# pass 6" in done.stdout, done.stdout[-3000:]

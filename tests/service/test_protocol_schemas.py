@@ -149,3 +149,61 @@ def test_health_is_what_the_readme_shows_and_nothing_more() -> None:
         check("health", {**example, "planner_threads": 4})
     with pytest.raises(jsonschema.ValidationError, match="Additional properties"):
         check("health", {**example, "clock": {**example["clock"], "queue": []}})
+
+
+SPEECH = (
+    '<bml xmlns="http://www.bml-initiative.org/bml/bml-1.0" id="talk">'
+    '<speech id="say"><text>Hello there, this is a long sentence that goes on for a while, '
+    "so that it can be interrupted before it ends, and then some more words.</text></speech></bml>"
+)
+
+
+@pytest.mark.slow
+def test_speech_audio_its_cut_the_model_and_a_viewer_error_are_what_the_schemas_allow() -> None:
+    """The viewer's other messages from a real server: ``audio`` of a speech,
+    the ``audioCut`` of its interruption, the ``model`` (``model=true``) and
+    the ``error`` answering a subscribe it cannot follow; and the client's
+    ``target`` request."""
+    import msgpack
+    from websockets.sync.client import connect
+
+    check("target-request", json.loads(SubmitterProtocol.target("door", (2.0, 0.0, 1.0))))
+    with pytest.raises(jsonschema.ValidationError):
+        check("target-request", {"type": "target", "name": "door", "position": [1, 2]})
+    with serve_process() as server:
+        url = f"ws://127.0.0.1:{server.port}/view?character=Carl&model=true"
+        with connect(url, max_size=None) as raw:  # the model is about 1.8 MB
+
+            def next_message() -> dict[str, Any]:
+                message: dict[str, Any] = msgpack.unpackb(raw.recv(30 * UNIT), raw=False)
+                return message
+
+            assert next_message()["type"] == "mesh"
+            model = next_message()
+            check("model", as_json(model))
+            raw.send(json.dumps({"type": "subscribe", "vertices": "bogus"}))
+            while (error := next_message())["type"] != "error":
+                pass
+            check("viewer-error", as_json(error))
+        with (
+            ViewClient(server.url, character="Carl") as view,
+            SubmitClient(server.url, character="Carl") as speaker,
+        ):
+            speaker.target("door", (2.0, 0.0, 1.0))
+            speaker.submit(SPEECH)
+            audio: dict[str, Any] | None = None
+            cut: dict[str, Any] | None = None
+            for _ in range(3000):  # about a minute of frames at 60 fps
+                message = view.receive(30 * UNIT)
+                if message["type"] == "audio" and audio is None:
+                    audio = message
+                    speaker.interrupt("talk")
+                elif message["type"] == "audioCut":
+                    cut = message
+                    break
+            if audio is None:
+                pytest.skip("the server sent no speech audio (no TTS here)")
+            check("audio", as_json(audio))
+            assert cut is not None, "no audioCut after the speech was interrupted"
+            check("audio-cut", as_json(cut))
+            assert cut["t"] >= audio["t"]

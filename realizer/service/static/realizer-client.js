@@ -299,6 +299,10 @@ export class SubmitClient {
     if (character !== undefined) message.character = character;
     this.connection.send(JSON.stringify(message));
   }
+  // Add or move the scene target `name` to [x, y, z] metres (protocols/scene.md).
+  target(name, position) {
+    this.connection.send(JSON.stringify({ type: "target", name, position: Array.from(position, Number) }));
+  }
   // The next message as its JSON object.
   async receive(timeoutMs) {
     const data = await this.connection.next(timeoutMs);
