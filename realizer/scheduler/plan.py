@@ -496,22 +496,28 @@ def schedule_block(
     # max(0, t): the solver's round-off may leave -1e-18 at the block start
     values = [start + (t if t > 0.0 else 0.0) for t in values]
     behaviours = []
+    #: each behaviour's (start, end), made once (the channel sweep and the
+    #: plan's end read them)
+    spans: dict[str, tuple[float, float]] = {}
     firsts, indices = problem._first, problem.keys
     for behaviour in block.behaviours:
-        if behaviour.id in skip or behaviour.id not in models:
+        behaviour_id = behaviour.id
+        model = models.get(behaviour_id)
+        if model is None or behaviour_id in skip:
             continue
-        syncs = models[behaviour.id].syncs
-        first = firsts.get(behaviour.id)
+        syncs = model.syncs
+        first = firsts.get(behaviour_id)
         if first is not None:  # its keys are consecutive
-            times = dict(zip(syncs, values[first : first + len(syncs)], strict=True))
+            own = values[first : first + len(syncs)]
         else:
-            times = {sync: values[indices[(behaviour.id, sync)]] for sync in syncs}
-        behaviours.append(ScheduledBehaviour(behaviour, times))
-    busy = _resolve_channels(block.id, behaviours, registry, notes, occupied)
+            own = [values[indices[(behaviour_id, sync)]] for sync in syncs]
+        spans[behaviour_id] = (min(own), max(own))
+        behaviours.append(ScheduledBehaviour(behaviour, dict(zip(syncs, own, strict=True))))
+    busy = _resolve_channels(block.id, behaviours, registry, notes, occupied, spans)
     if busy:
         skip |= busy
         behaviours = [b for b in behaviours if b.id not in busy]
-    end = max((b.end for b in behaviours), default=start)
+    end = max((spans[b.id][1] for b in behaviours), default=start)
     return TimedPlan(
         block=block,
         start=start,
@@ -534,6 +540,7 @@ def _resolve_channels(
     registry: Planner,
     notes: list[BmlWarning],
     occupied: Sequence[tuple[str, ScheduledBehaviour]] = (),
+    spans: Mapping[str, tuple[float, float]] | None = None,
 ) -> set[str]:
     """Resource conflicts, by the policy of docs/scheduler.md.
 
@@ -551,19 +558,22 @@ def _resolve_channels(
     the pairs that do overlap, not with every pair that shares a channel (a
     block of 10,000 behaviours has thousands of nods).
     """
-    by_channel: dict[str, list[tuple[str, ScheduledBehaviour]]] = {}
+    by_channel: dict[str, list[tuple[str, ScheduledBehaviour, tuple[float, float]]]] = {}
     for other_block, scheduled in occupied:
+        bounds = (scheduled.start, scheduled.end)
         for channel in sorted(registry.channels(scheduled.behaviour)):
-            by_channel.setdefault(channel, []).append((f"{other_block}:", scheduled))
+            by_channel.setdefault(channel, []).append((f"{other_block}:", scheduled, bounds))
     for scheduled in behaviours:
+        bounds = spans[scheduled.id] if spans is not None else (scheduled.start, scheduled.end)
         for channel in sorted(registry.channels(scheduled.behaviour)):
-            by_channel.setdefault(channel, []).append(("", scheduled))
+            by_channel.setdefault(channel, []).append(("", scheduled, bounds))
     removed: set[str] = set()
-    for channel, users in by_channel.items():
-        if len(users) < 2:
+    for channel, found in by_channel.items():
+        if len(found) < 2:
             continue
-        spans = [(min(u.times.values()), max(u.times.values())) for _, u in users]
-        for later_index, earlier_index in _overlapping(spans):
+        users = [(block, scheduled) for block, scheduled, _ in found]
+        spans_of = [bounds for *_, bounds in found]
+        for later_index, earlier_index in _overlapping(spans_of):
             later_block, later = users[later_index]
             earlier_block, earlier = users[earlier_index]
             if later_block:
@@ -571,8 +581,8 @@ def _resolve_channels(
             if (not earlier_block and earlier.id in removed) or later.id in removed:
                 continue
             (earlier_start, earlier_end), (later_start, later_end) = (
-                spans[earlier_index],
-                spans[later_index],
+                spans_of[earlier_index],
+                spans_of[later_index],
             )
             lo, hi = max(earlier_start, later_start), min(earlier_end, later_end)
             span = f"{lo:.3f} to {hi:.3f} s"

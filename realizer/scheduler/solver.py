@@ -1436,9 +1436,10 @@ def _tiny_times(problem: Problem) -> list[float] | None:
         if chain >= 0:
             held.setdefault(chain, set()).add(k)
     full: set[int] = set()
+    orphans = [k for k, chain in enumerate(owner) if chain < 0]  # the block start is 0
     for _ in range(TINY_ATTEMPTS):
-        # The points left (keys of no behaviour first: the block start is 0).
-        kept_keys = [k for k, chain in enumerate(owner) if chain < 0]
+        # The points left: keys of no behaviour, then each behaviour's.
+        kept_keys = orphans[:]
         # Springs between them: key a, key b, preferred, weight, minimum, maximum.
         springs: list[tuple[int, int, float, float, float, float]] = []
         plans: list[tuple[int, _ChainPlan] | None] = []
@@ -1715,7 +1716,7 @@ def _tiny_attempt(
     """
     n = len(keep)
     keep = keep[:]
-    springs = [spring[:] for spring in base_springs]
+    springs = base_springs[:]  # combined springs are appended; none is changed
     # Eliminate dangling ends and springs in series.
     touching: list[list[int]] = [[] for _ in range(n)]
     for s, (i, j, *_) in enumerate(springs):
