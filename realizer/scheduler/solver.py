@@ -499,7 +499,12 @@ def _sparse_times(problem: Problem) -> list[float]:
     term_w = np.concatenate([term_w, np.full(n_pulled, pull)])
     hessian, gradient = _quadratic(n, term_i, term_j, term_c, term_w)
     n_phase = phase_w.size
-    exact = _quadratic(n, term_i[:n_phase], term_j[:n_phase], term_c[:n_phase], phase_w)
+
+    def exact() -> tuple[Any, np.ndarray]:
+        """The objective without the pull: only the polish and the fallback need it."""
+        if not n_pulled:
+            return hessian, gradient  # the same terms
+        return _quadratic(n, term_i[:n_phase], term_j[:n_phase], term_c[:n_phase], phase_w)
 
     # Inequalities as rows ``t_upper - t_lower >= minimum`` (key indices, -1: zero).
     stretchy = np.isfinite(phase_max) & (phase_max - phase_min > TOLERANCE)
@@ -555,7 +560,7 @@ def _sparse_times(problem: Problem) -> list[float]:
             x = solved[0]  # nothing was pulled: already the exact optimum
         elif solved is not None:
             x = _polish(
-                exact, matrix, ri, rj, b, solved[1], solved[0], pulled, var_comp, pinned_comp
+                exact(), matrix, ri, rj, b, solved[1], solved[0], pulled, var_comp, pinned_comp
             )
         else:
             # The fast method cycled or met a degenerate working set: the
@@ -564,7 +569,7 @@ def _sparse_times(problem: Problem) -> list[float]:
             if start is None:
                 conflict = find_conflict(problem)
                 raise Infeasible(conflict or frozenset(), "the constraints cannot all hold")
-            solved_x = _active_set(hessian, gradient, matrix, ri, rj, b, start, exact, pulled,
+            solved_x = _active_set(hessian, gradient, matrix, ri, rj, b, start, exact(), pulled,
                                    var_comp, pinned_comp)  # fmt: skip
             if solved_x is None:
                 raise SchedulingError("the scheduler's active-set method did not converge")
@@ -1351,9 +1356,21 @@ def _kkt(
             return spla.splu(hessian.tocsc()).solve(-gradient).reshape(n), None
         except RuntimeError:
             return None, None
-    active = matrix[working]
+    # [[H, -A'], [A, 0]] assembled from coordinates in one constructor
+    # (scipy's bmat makes the same matrix with a few times the overhead).
+    active = matrix[working].tocoo()
+    square = hessian.tocoo()
     k = len(working)
-    kkt = sp.bmat([[hessian, -active.T], [active, None]], format="csc")
+    kkt = sp.csc_matrix(
+        (
+            np.concatenate([square.data, -active.data, active.data]),
+            (
+                np.concatenate([square.row, active.col, active.row + n]),
+                np.concatenate([square.col, active.row + n, active.col]),
+            ),
+        ),
+        shape=(n + k, n + k),
+    )
     rhs = np.concatenate([-gradient, b[working]])
     try:
         solution = spla.splu(kkt).solve(rhs)
