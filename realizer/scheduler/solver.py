@@ -1588,8 +1588,8 @@ def _tiny_reduced(
     flat = problem._phase_table
     tie_a = [index_of[k] for k in problem._tie_a]
     tie_b = [index_of[k] for k in problem._tie_b]
-    phase_a = [index_of[a] for a, *_ in phase_springs]
-    phase_b = [index_of[b] for _, b, *_ in phase_springs]
+    phase_a = [index_of[spring[0]] for spring in phase_springs]
+    phase_b = [index_of[spring[1]] for spring in phase_springs]
     # Equality classes, as _dense_times.
     ties = list(zip(tie_a, tie_b, problem._tie_d, strict=True))
     for a, b, spring in zip(phase_a, phase_b, phase_springs, strict=True):
@@ -1606,7 +1606,9 @@ def _tiny_reduced(
             parent[ra] = rb
             offset[ra] = d + offset[b] - offset[a]
     for k in range(n_keys):
-        _find(parent, offset, k)
+        up = parent[k]
+        if parent[up] != up:  # not yet a child of its root
+            _find(parent, offset, k)
     pinned = parent[0]
     pinned_value = -offset[0]
     roots = [k for k in range(n_keys) if parent[k] == k and k != pinned]
@@ -1736,7 +1738,8 @@ def _tiny_attempt(
     springs = base_springs[:]  # combined springs are appended; none is changed
     # Eliminate dangling ends and springs in series.
     touching: list[list[int]] = [[] for _ in range(n)]
-    for s, (i, j, *_) in enumerate(springs):
+    for s, spring in enumerate(springs):
+        i, j = spring[0], spring[1]
         if i >= 0:
             touching[i].append(s)
         if j >= 0:
@@ -1880,8 +1883,12 @@ def _tiny_solve(matrix: list[list[float]], rhs: list[float]) -> list[float] | No
     size = len(rhs)
     a = [[*line, value] for line, value in zip(matrix, rhs, strict=True)]
     for col in range(size):
-        pivot = max(range(col, size), key=lambda r: abs(a[r][col]))
-        if abs(a[pivot][col]) < 1e-13:
+        pivot, largest = col, abs(a[col][col])
+        for r in range(col + 1, size):
+            value = abs(a[r][col])
+            if value > largest:
+                pivot, largest = r, value
+        if largest < 1e-13:
             return None
         if pivot != col:
             a[col], a[pivot] = a[pivot], a[col]
