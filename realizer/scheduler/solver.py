@@ -394,6 +394,7 @@ def _scipy() -> Any:
     :class:`realizer.extras.MissingExtraError` naming the extra.
     """
     try:
+        import scipy.linalg
         import scipy.sparse
         import scipy.sparse.csgraph
         import scipy.sparse.linalg
@@ -1352,6 +1353,9 @@ def _kkt(
     if not working:
         if n == 0:
             return np.zeros(0), None
+        banded = _band_solve(hessian, -gradient, definite=True)
+        if banded is not None:
+            return banded, None
         try:
             return spla.splu(hessian.tocsc()).solve(-gradient).reshape(n), None
         except RuntimeError:
@@ -1373,7 +1377,8 @@ def _kkt(
     )
     rhs = np.concatenate([-gradient, b[working]])
     try:
-        solution = spla.splu(kkt).solve(rhs)
+        banded = _band_solve(kkt, rhs, definite=False)
+        solution = banded if banded is not None else spla.splu(kkt).solve(rhs)
     except RuntimeError:
         if quiet:
             return None, None
@@ -1385,6 +1390,62 @@ def _kkt(
     if not np.all(np.isfinite(solution)):
         return None, None
     return solution[:n], solution[n : n + k]
+
+
+#: A system whose bandwidth after the reverse Cuthill-McKee ordering is at
+#: most this is solved as a band matrix by LAPACK (cost ~ size x bandwidth^2)
+#: rather than by SuperLU.
+BAND_LIMIT = 16
+
+
+def _band_solve(matrix: Any, rhs: np.ndarray, *, definite: bool) -> np.ndarray | None:
+    """``matrix x = rhs`` as a band matrix after reverse Cuthill-McKee, or None.
+
+    A block's Hessian is mostly chains of phases, its KKT systems add a
+    row per held difference constraint: reordered, the bandwidth is
+    small (9 for the benchmark's 1,000 behaviours, 4,330 unknowns), and a
+    band factorisation (Cholesky for the definite Hessian, LU with partial
+    pivoting for a KKT system) takes half of SuperLU's time there. None
+    when the bandwidth exceeds :data:`BAND_LIMIT`, or LAPACK finds the
+    system singular (not definite), or the answer does not solve it (a
+    singular system passed on round-off): the caller takes SuperLU, which
+    decides.
+    """
+    scipy = _scipy()
+    size = matrix.shape[0]
+    order = scipy.sparse.csgraph.reverse_cuthill_mckee(matrix.tocsr(), symmetric_mode=True)
+    position = np.empty_like(order)
+    position[order] = np.arange(order.size)
+    entries = matrix.tocoo()
+    entries.sum_duplicates()  # a no-op on the canonical matrices made here
+    rows, cols = position[entries.row], position[entries.col]
+    width = int(np.abs(rows - cols).max(initial=0))
+    if width > BAND_LIMIT:
+        return None
+    try:
+        if definite:  # lower form: band[i - j, j] = a[i, j]
+            lower = rows >= cols
+            band = np.zeros((width + 1, size))
+            band[rows[lower] - cols[lower], cols[lower]] = entries.data[lower]
+            solved = scipy.linalg.solveh_banded(band, rhs[order], lower=True,
+                                                check_finite=False)  # fmt: skip
+        else:  # band[width + i - j, j] = a[i, j]
+            band = np.zeros((2 * width + 1, size))
+            band[width + rows - cols, cols] = entries.data
+            solved = scipy.linalg.solve_banded((width, width), band, rhs[order],
+                                               check_finite=False)  # fmt: skip
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    solution = np.empty(size)
+    solution[order] = solved
+    # A singular system can pass the factorisation on round-off (a tiny
+    # positive pivot) and give nonsense: the residual tells.
+    residual = matrix @ solution - rhs
+    if not np.all(np.isfinite(residual)) or np.abs(residual).max(initial=0.0) > 1e-9 * (
+        1.0 + float(np.abs(rhs).max(initial=0.0))
+    ):
+        return None
+    return solution
 
 
 # -- the pure-Python path for tiny problems ---------------------------------------

@@ -198,3 +198,60 @@ def test_a_chain_held_at_its_ends_is_one_spring_in_series() -> None:
     assert solver._chain_plan(phases, (3,)) is solver._chain_plan(phases, (3,))  # cached
     rigid = (Phase(0.5), Phase(0.4, 1.0, 0.4, 0.4), Phase(0.5))
     assert solver._chain_plan(rigid, ())[0] == (0, 1, 2)  # a rigid phase is a tie: kept
+
+
+# -- band solves on the sparse path ----------------------------------------------------
+
+
+def test_band_solves_equal_superlu_and_decline_wide_or_singular_systems() -> None:
+    sp = pytest.importorskip("scipy.sparse")
+    spla = pytest.importorskip("scipy.sparse.linalg")
+    np = pytest.importorskip("numpy")
+    chance = np.random.default_rng(7)
+    size = 300
+    # A shuffled chain Laplacian plus a diagonal: definite, bandwidth 1 once reordered.
+    order = chance.permutation(size)
+    weight = chance.uniform(0.1, 3.0, size - 1)
+    rows = np.concatenate([order[:-1], order[1:], order[:-1], order[1:], order])
+    cols = np.concatenate([order[1:], order[:-1], order[:-1], order[1:], order])
+    data = np.concatenate([-weight, -weight, weight, weight, np.full(size, 1e-3)])
+    hessian = sp.csc_matrix((data, (rows, cols)), shape=(size, size))
+    rhs = chance.normal(size=size)
+    banded = solver._band_solve(hessian, rhs, definite=True)
+    assert banded is not None
+    np.testing.assert_allclose(banded, spla.splu(hessian).solve(rhs), atol=1e-8)
+    # A KKT system with two held rows (indefinite).
+    held = sp.csr_matrix(([1.0, -1.0, 1.0], ([0, 0, 1], [order[3], order[9], order[20]])),
+                         shape=(2, size))  # fmt: skip
+    kkt = sp.bmat([[hessian, -held.T], [held, None]], format="csc")
+    rhs2 = np.concatenate([rhs, [0.5, 1.0]])
+    banded = solver._band_solve(kkt, rhs2, definite=False)
+    assert banded is not None
+    np.testing.assert_allclose(banded, spla.splu(kkt).solve(rhs2), atol=1e-8)
+    # A star (every point tied to one): too wide for a band, SuperLU decides.
+    star = sp.csc_matrix(
+        (np.concatenate([np.full(size - 1, -1.0), np.full(size - 1, -1.0), np.full(size, 2.0)]),
+         (np.concatenate([np.zeros(size - 1, int), np.arange(1, size), np.arange(size)]),
+          np.concatenate([np.arange(1, size), np.zeros(size - 1, int), np.arange(size)]))),
+        shape=(size, size),
+    )  # fmt: skip
+    assert solver._band_solve(star, rhs, definite=True) is None
+    # Singular (a Laplacian without the diagonal): declined, not a wrong answer.
+    singular = sp.csc_matrix((data[:-size], (rows[:-size], cols[:-size])), shape=(size, size))
+    assert solver._band_solve(singular, rhs, definite=True) is None
+
+
+@pytest.mark.parametrize("seed", range(60))
+def test_the_sparse_path_gives_the_same_times_with_and_without_band_solves(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    problem = random_problem(seed) if seed % 2 else pinned_problem(seed)
+    banded = outcome(solver.solve_sparse, problem)
+    monkeypatch.setattr(solver, "BAND_LIMIT", -1)  # SuperLU for every system
+    plain = outcome(solver.solve_sparse, problem)
+    if isinstance(plain, frozenset):
+        assert banded == plain
+        return
+    assert isinstance(banded, dict)
+    for key, time in plain.items():
+        assert banded[key] == pytest.approx(time, abs=1e-6), key
