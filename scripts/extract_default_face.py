@@ -1275,6 +1275,16 @@ def nose_wing_tables(
     return tables
 
 
+def tongue_thrust_table(shape: FloatArray, tongue: IntArray, tip: int) -> Any:
+    """thrust_tongue_tip (45) as a FaceDefMesh of the artist's tongueOut
+    (``shape``, metres, (n, 3); it moves the tongue only), scaled so that 6.1
+    (vertex ``tip``) moves one MW per unit forward; negative values follow
+    the same path back."""
+    per_unit = shape / float(shape[tip, 2])
+    moved = np.intersect1d(tongue, np.flatnonzero(np.linalg.norm(shape, axis=1) > 1e-5))
+    return shape_table(45, (-1000.0, 1000.0), [per_unit], moved)
+
+
 def tongue_roll_table(v: FloatArray, tongue: IntArray, middle_x: float) -> Any:
     """tongue_roll (47) as a FaceDefMesh: each tongue vertex rises by
     angle x d**2 / h (d its distance from the tongue's middle, h the
@@ -1706,13 +1716,15 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         cheek_tables(v, head.faces, cheek_shapes, fp_index, skin_only, parts["mouth_inside"])
     )
 
-    # Tongue: the tip (43..45) bends the front half; 46 lifts the body;
-    # 47 rolls both borders up about the tongue's length.
+    # Tongue: the tip (43, 44) bends the front half; 45 slides it out; 46
+    # lifts the body; 47 rolls both borders up into a U.
     tongue = parts["tongue"]
     length = float(np.ptp(v[tongue, 2]))
     ease(43, right, 0.7 * length, part="tongue")
     ease(44, up, 0.7 * length, part="tongue")
-    ease(45, fwd, 0.7 * length, part="tongue")
+    # thrust (45): the artist's tongueOut, the whole tongue sliding out (a
+    # sphere round 6.1 stretched its front half); 6.1 one MW per unit forward
+    deformers.append(tongue_thrust_table(shape("tongueOut"), tongue, fp_index["6.1"]))
     ease(46, up, 0.8 * length, part="tongue")
     deformers.append(tongue_roll_table(v, tongue, float(fp["6.2"][0])))
 

@@ -151,3 +151,16 @@ def test_the_tongue_rolls_into_a_u_not_a_v(face: Face) -> None:
     between = lift[(np.abs(x) > 0.4 * half) & (np.abs(x) < 0.6 * half)].mean()
     assert border - middle > 0.005
     assert 0.15 < (between - middle) / (border - middle) < 0.4
+
+
+def test_thrusting_the_tongue_slides_it_out_whole(face: Face) -> None:
+    """A sphere round 6.1 stretched the tongue's front half (its back third
+    stayed); the artist's tongueOut slides the tongue out, its back third
+    going at least 30 % as far forward as the tip, 6.1 one MW per unit."""
+    offsets = moved(face, {45: 300}, base={3: 900})
+    tongue = face.part("tongue")
+    z = face.vertices[tongue, 2]
+    back = tongue[z < z.min() + (z.max() - z.min()) / 3]
+    tip = offsets[face.feature_vertex("6.1"), 2]
+    assert tip == pytest.approx(300 * face.fapu.mw, rel=0.02)
+    assert offsets[back, 2].mean() > 0.3 * tip
