@@ -226,6 +226,7 @@ def test_the_readmes_settings_file_is_one_serve_reads(tmp_path: Path) -> None:
     settings = resolve(read_file(config), {}, {})
     assert settings.avatar == str(tmp_path / "avatars" / "doctor.glb")
     assert settings.seed == 7 and settings.idle and settings.limits == {"viewers": 200}
+    assert settings.planner_processes == 2
 
 
 def test_planner_processes_come_from_the_file_or_the_flag_and_are_checked(tmp_path: Path) -> None:
