@@ -185,13 +185,14 @@ class _ChildPlanner:
         raise ValueError(f"unknown planner request {op!r}")
 
 
-def _child_main(conn: Connection, recipe: PlanningRecipe) -> None:
+def _child_main(conn: Connection, recipe: PlanningRecipe, nice: int = 0) -> None:
     """A planner process: answer requests until the pipe closes."""
     # The service's SIGINT and SIGTERM are the service's to handle: a child
     # ends when its pipe closes (or is killed), never halfway on a signal.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    with contextlib.suppress(OSError):
-        os.nice(_NICE)
+    if nice:
+        with contextlib.suppress(OSError):
+            os.nice(nice)
     try:
         planner = _ChildPlanner(recipe)
     except Exception:
@@ -218,7 +219,7 @@ def _child_main(conn: Connection, recipe: PlanningRecipe) -> None:
 
 #: How much lower than the service a planner process runs (os.nice): when
 #: both compete for a core, the frame clock's process wins it.
-_NICE = 5
+NICE = 5
 
 
 # -- the service's side -------------------------------------------------------------
@@ -227,10 +228,13 @@ _NICE = 5
 class _Child:
     """One planner process and the service's end of its pipe."""
 
-    def __init__(self, context: Any, recipe: PlanningRecipe) -> None:
+    def __init__(self, context: Any, recipe: PlanningRecipe, nice: int = NICE) -> None:
         ours, theirs = context.Pipe(duplex=True)
         self.process = context.Process(
-            target=_child_main, args=(theirs, recipe), name="realizer-planner", daemon=True
+            target=_child_main,
+            args=(theirs, recipe, nice),
+            name="realizer-planner",
+            daemon=True,
         )
         self.process.start()
         theirs.close()
@@ -384,10 +388,12 @@ class PlannerPool:
         budget_ms: int,
         *,
         start_method: str = "forkserver",
+        nice: int = NICE,
     ) -> None:
         if processes < 1:
             raise ValueError(f"a planner pool needs at least one process, not {processes}")
         self.recipe = recipe
+        self.nice = nice  # added to the children's niceness (os.nice)
         self.budget_ms = budget_ms
         self.processes = processes
         self._context = multiprocessing.get_context(start_method)
@@ -414,7 +420,7 @@ class PlannerPool:
         self.start_seconds = time.perf_counter() - began
 
     def _start(self) -> _Child:
-        child = _Child(self._context, self.recipe)
+        child = _Child(self._context, self.recipe, self.nice)
         with self._lock:
             self._children.add(child)
         return child
