@@ -199,7 +199,10 @@ class _Reader:
         self.dropped: set[str] = set()
         self.ids: set[str] = set()
         self.block_id = ""
-        self.behaviour_count = 0
+        # Every attribute has its "=" in the source (entities and DTD
+        # defaults are refused): with no more of them in the whole document
+        # than one element may hold, no element needs counting.
+        self.count_attributes = data.count(b"=") > limits.max_attributes
         self._text: str | None = None
         self._line_starts: list[int] = []
         self._cursor: dict[int, int] = {}  # line -> where its next search starts
@@ -331,7 +334,8 @@ class _Reader:
         namespaces in scope inside it. ``attributes``: the element's, when
         the caller has listed them already (after :meth:`check_attributes`)."""
         if attributes is None:
-            self.check_attributes(el)
+            if self.count_attributes:
+                self.check_attributes(el)
             attributes = tuple(el.items())
         if self.flat_namespaces and parent_nsmap:
             nsmap = parent_nsmap
@@ -362,7 +366,7 @@ class _Reader:
         if count > self.limits.max_attributes:
             raise self.error(
                 BmlSecurityError,
-                f"<{etree.QName(el).localname}> has {count} attributes; the limit is "
+                f"<{_split_tag(el.tag)[1]}> has {count} attributes; the limit is "
                 f"{self.limits.max_attributes} per element",
                 el,
             )
@@ -387,9 +391,9 @@ class _Reader:
     # -- the grammar ---------------------------------------------------------
 
     def block(self, root: Any) -> Block:
-        namespace = etree.QName(root).namespace or ""
+        namespace, local = _split_tag(root.tag)
         if (
-            etree.QName(root).localname != "bml"
+            local != "bml"
             or namespace not in DIALECTS
             or (DIALECTS[namespace] not in ("bml", "draft"))
         ):
@@ -423,36 +427,38 @@ class _Reader:
         fields[3] = tuple(
             [block_child(child, nsmap, False, behaviours, constraints) for child in root]
         )
-        prolog = tuple(
-            self.other(sibling, {}, 0)
-            for sibling in reversed(list(root.itersiblings(preceding=True)))
-        )
-        epilog = tuple(self.other(sibling, {}, 0) for sibling in root.itersiblings())
+        prolog: tuple[Node, ...] = ()
+        if root.getprevious() is not None:
+            prolog = tuple(
+                [
+                    self.other(sibling, {}, 0)
+                    for sibling in reversed(list(root.itersiblings(preceding=True)))
+                ]
+            )
+        epilog: tuple[Node, ...] = ()
+        if root.getnext() is not None:
+            epilog = tuple([self.other(sibling, {}, 0) for sibling in root.itersiblings()])
         fields[4] = ""  # the tail
-        tag, attributes, text, children, tail, prefix, nsdecls, line = fields
-        return Block(
-            tag,
-            attributes,
-            text,
-            children,
-            tail,
-            prefix,
-            nsdecls,
-            line,
-            id=block_id,
-            character_id=root.get("characterId"),
-            composition=composition.upper(),
-            dialect=dialect,
-            behaviours=tuple(behaviours),
-            constraints=tuple(constraints),
-            prolog=prolog,  # type: ignore[arg-type]
-            epilog=epilog,  # type: ignore[arg-type]
-            control=self.block_control(root),
+        return _new_block(
+            *fields,
+            block_id,  # id
+            root.get("characterId"),  # character_id
+            composition.upper(),
+            dialect,
+            tuple(behaviours),
+            tuple(constraints),
+            prolog,
+            epilog,
+            self.block_control(root, fields[1]),  # control
+            "",  # source: set by parse_bml
         )
 
-    def block_control(self, root: Any) -> BlockControl:
+    def block_control(self, root: Any, attributes: tuple[tuple[str, str], ...]) -> BlockControl:
         """The BMLA attributes of ``<bml>`` (BlockControl); none: the shared empty one."""
-        if not any(name.startswith(_BMLA_PREFIX) for name in root.attrib):
+        for name, _ in attributes:
+            if name.startswith(_BMLA_PREFIX):
+                break
+        else:
             return NO_CONTROL
 
         def ids(name: str) -> tuple[str, ...]:
@@ -489,7 +495,7 @@ class _Reader:
             return self.other(el, nsmap, 1)
         spec = _SPECS_BY_TAG.get(tag)
         if spec is not None:
-            behaviour = self.behaviour(el, nsmap, spec, required)
+            behaviour = self.behaviour(el, tag, nsmap, spec, required)
             if behaviour.__class__ is Behaviour:
                 behaviours.append(behaviour)
             return behaviour
@@ -533,28 +539,31 @@ class _Reader:
         return self.other(el, nsmap, 1)
 
     def behaviour(
-        self, el: Any, nsmap: dict[str | None, str], spec: BehaviourSpec, required: bool
+        self, el: Any, tag: str, nsmap: dict[str | None, str], spec: BehaviourSpec, required: bool
     ) -> Node:
-        """One behaviour; an uncreatable one is kept as plain XML with a warning."""
+        """One behaviour; an uncreatable one is kept as plain XML with a warning.
+
+        The hot path of a parse: each attribute is looked at once, through
+        the spec's table of what each name is (:func:`_attribute_kinds`).
+        """
         behaviour_id = el.get("id")
-        local = spec.element
         if not behaviour_id or not behaviour_id.strip():
             self.warn(
                 WarningType.CANNOT_CREATE_BEHAVIOR,
-                f"<{local}> has no id attribute; it is ignored",
+                f"<{spec.element}> has no id attribute; it is ignored",
                 el,
             )
             return self.other(el, nsmap, 1)
-        if behaviour_id in self.ids:
+        ids = self.ids
+        if behaviour_id in ids:
             raise self.error(
                 BmlSyntaxError,
                 f"id {behaviour_id!r} is used twice in block {self.block_id!r}",
                 el,
                 f'id="{behaviour_id}"',
             )
-        self.ids.add(behaviour_id)
-        self.behaviour_count += 1
-        if self.behaviour_count > self.limits.max_behaviours:
+        ids.add(behaviour_id)
+        if len(ids) > self.limits.max_behaviours:
             raise self.error(
                 BmlSecurityError,
                 f"more than {self.limits.max_behaviours} behaviours in one block",
@@ -562,49 +571,32 @@ class _Reader:
             )
 
         aliases = spec.sync_aliases
-        sync_attributes = spec.sync_attributes
-        understood = spec.attributes
+        kinds = _ATTRIBUTE_KINDS[id(spec)]
         params: list[tuple[str, str]] = []
         sync_refs: list[tuple[str, SyncRef]] = []
         problem = ""
-        if len(el.attrib) > self.limits.max_attributes:
-            self.check_attributes(el)  # raises
+        if self.count_attributes:
+            self.check_attributes(el)
         attributes = tuple(el.items())
-        for name, value in attributes:
-            sync_name = sync_attributes.get(name)
-            if sync_name is not None:
+        for item in attributes:
+            name, value = item
+            kind = kinds.get(name)
+            if kind is None:
+                if name == "id":
+                    continue
+                self.unknown_attribute(spec, name, value, behaviour_id, params, el)
+            elif kind.__class__ is str:  # a sync attribute: its BML 1.0 sync name
                 ref = fast_sync_ref(value) if not aliases else None
                 if ref is None:
                     ref = self.sync_ref(value, el, name, aliases)
-                sync_refs.append((sync_name, ref))
-            elif name in understood:
-                if name in spec.numeric and not _number_within(value, self.limits.max_number):
+                sync_refs.append((kind, ref))
+            else:
+                if kind is True and not _number_within(value, self.limits.max_number):
                     problem = (
                         f"attribute {name}={value[:40]!r} of {behaviour_id!r} is not a number "
                         f"of magnitude at most {self.limits.max_number:g}"
                     )
-                params.append((name, value))
-            elif name == "id":
-                continue
-            elif name == _XML_LANG and spec.type == "speech":
-                params.append(("lang", value))
-            elif name[0] == "{":
-                self.warn(
-                    WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
-                    f"custom attribute {name} on {behaviour_id!r} is not supported; it is ignored",
-                    el,
-                    behaviour_id,
-                    needle=name.rpartition("}")[2],
-                )
-            else:
-                self.warn(
-                    WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
-                    f"attribute {name!r} is not understood on <{local}> {behaviour_id!r}; "
-                    "it is ignored",
-                    el,
-                    behaviour_id,
-                    needle=f"{name}=",
-                )
+                params.append(item)
         behaviour_type = spec.type
         if behaviour_type == "speech" and el.get(_XML_LANG) is None:
             # BML 1.0: a speech's language is its own xml:lang, else the
@@ -619,7 +611,7 @@ class _Reader:
                 if key == name:
                     break
             else:
-                problem = f"<{local}> {behaviour_id!r} lacks the attribute {name!r}"
+                problem = f"<{spec.element}> {behaviour_id!r} lacks the attribute {name!r}"
                 break
         if spec.dialect == "draft":
             behaviour_type, params, draft_problem = self.translate(spec, params, behaviour_id)
@@ -639,41 +631,32 @@ class _Reader:
             decls = tuple(
                 (prefix, uri) for prefix, uri in inner.items() if nsmap.get(prefix) != uri
             )
-        fields = [
-            el.tag,
-            attributes,
-            el.text or "",
-            (),
-            el.tail or "",
-            el.prefix,
-            decls,
-            el.sourceline or 0,
-        ]
         descriptions: list[Description] = []
         speech: SpeechText | None = None
+        children: tuple[Node, ...] = ()
         if len(el):
-            children: list[Node] = []
+            listed: list[Node] = []
             for child in el:
-                tag = child.tag
-                if tag.__class__ is str and tag.rpartition("}")[0] in _CORE_PREFIXES:
-                    local_child = tag.rpartition("}")[2]
+                child_tag = child.tag
+                if child_tag.__class__ is str and child_tag.rpartition("}")[0] in _CORE_PREFIXES:
+                    local_child = child_tag.rpartition("}")[2]
                     if local_child == "description":
                         description = self.description(child, inner)
                         descriptions.append(description)
-                        children.append(description)
+                        listed.append(description)
                         continue
                     if local_child == "text" and spec.type == "speech" and speech is None:
                         speech = self.speech_text(child, inner, behaviour_id, aliases)
-                        children.append(speech)
+                        listed.append(speech)
                         continue
                 elif (
                     spec.type == "parameterValueChange"
-                    and tag == _BMLA_PREFIX + "trajectory"
+                    and child_tag == _BMLA_PREFIX + "trajectory"
                     and "targetValue" not in dict(params)
                 ):
                     problem = problem or self.trajectory(child, params, behaviour_id)
-                children.append(self.other(child, inner, 2))
-            fields[3] = tuple(children)
+                listed.append(self.other(child, inner, 2))
+            children = tuple(listed)
         if (
             spec.type == "parameterValueChange"
             and not problem
@@ -685,7 +668,16 @@ class _Reader:
             self.warn(
                 WarningType.CANNOT_CREATE_BEHAVIOR, problem + "; it is ignored", el, behaviour_id
             )
-            return _new_element(*fields)
+            return _new_element(
+                tag,
+                attributes,
+                el.text or "",
+                children,
+                el.tail or "",
+                el.prefix,
+                decls,
+                el.sourceline or 0,
+            )
 
         syncs = spec.syncs
         if speech is not None or repeated:
@@ -698,7 +690,14 @@ class _Reader:
             if times > 1:
                 self.check_absolute_order(syncs, sync_refs, el, behaviour_id)
         return _new_behaviour(
-            *fields,
+            tag,
+            attributes,
+            el.text or "",
+            children,
+            el.tail or "",
+            el.prefix,
+            decls,
+            el.sourceline or 0,
             behaviour_id,  # id
             behaviour_type,  # type
             spec.dialect,  # dialect
@@ -709,6 +708,36 @@ class _Reader:
             speech,
             tuple(descriptions),
         )
+
+    def unknown_attribute(
+        self,
+        spec: BehaviourSpec,
+        name: str,
+        value: str,
+        behaviour_id: str,
+        params: list[tuple[str, str]],
+        el: Any,
+    ) -> None:
+        """An attribute outside the spec's table: a speech's ``xml:lang``, or a warning."""
+        if name == _XML_LANG and spec.type == "speech":
+            params.append(("lang", value))
+        elif name[0] == "{":
+            self.warn(
+                WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
+                f"custom attribute {name} on {behaviour_id!r} is not supported; it is ignored",
+                el,
+                behaviour_id,
+                needle=name.rpartition("}")[2],
+            )
+        else:
+            self.warn(
+                WarningType.CUSTOM_ATTRIBUTE_NOT_SUPPORTED,
+                f"attribute {name!r} is not understood on <{spec.element}> {behaviour_id!r}; "
+                "it is ignored",
+                el,
+                behaviour_id,
+                needle=f"{name}=",
+            )
 
     def trajectory(self, el: Any, params: list[tuple[str, str]], behaviour_id: str) -> str:
         """A BMLA ``<trajectory type initialValue? targetValue>`` into ``params``
@@ -974,12 +1003,17 @@ class _Reader:
         children: list[Node] = []
         relations: list[Relation] = []
         for child in el:
-            if (
-                isinstance(child.tag, str)
-                and etree.QName(child).localname in _RELATION_KINDS
-                and (DIALECTS.get(etree.QName(child).namespace or "") in ("bml", "draft"))
-            ):
-                relation = self.relation(child, inner)
+            tag = child.tag
+            if tag.__class__ is str:
+                namespace, local = _split_tag(tag)
+                is_relation = local in _RELATION_KINDS and DIALECTS.get(namespace) in (
+                    "bml",
+                    "draft",
+                )
+            else:
+                is_relation = False
+            if is_relation:
+                relation = self.relation(child, inner, local)
                 relations.append(relation)
                 children.append(relation)
             else:
@@ -987,8 +1021,7 @@ class _Reader:
         fields[3] = tuple(children)
         return _new_constraint(*fields, el.get("id", ""), required, tuple(relations))
 
-    def relation(self, el: Any, nsmap: dict[str | None, str]) -> Relation:
-        kind = etree.QName(el).localname
+    def relation(self, el: Any, nsmap: dict[str | None, str], kind: str) -> Relation:
         fields, inner = self.common(el, nsmap)
         ref_text = el.get("ref")
         if kind != "synchronize" and ref_text is None:
@@ -997,7 +1030,8 @@ class _Reader:
         children: list[Node] = []
         syncs: list[SyncRef] = []
         for child in el:
-            if isinstance(child.tag, str) and etree.QName(child).localname == "sync":
+            tag = child.tag
+            if tag.__class__ is str and tag.rpartition("}")[2] == "sync":
                 sync_text = child.get("ref")
                 if sync_text is None:
                     raise self.error(BmlSyntaxError, f"<sync> in <{kind}> needs a ref", child)
@@ -1066,6 +1100,16 @@ _new_speech_text = builder(SpeechText)
 _new_constraint = builder(Constraint)
 _new_relation = builder(Relation)
 _new_required = builder(Required)
+_new_block = builder(Block, every_field=True)
+_new_result = builder(ParseResult)
+
+
+def _split_tag(tag: str) -> tuple[str, str]:
+    """``(namespace, local name)`` of a Clark name; ``""`` for no namespace."""
+    if tag[0] == "{":
+        namespace, _, local = tag[1:].partition("}")
+        return namespace, local
+    return "", tag
 
 
 def _specs_by_tag() -> dict[str, BehaviourSpec]:
@@ -1080,6 +1124,21 @@ def _specs_by_tag() -> dict[str, BehaviourSpec]:
 _SPECS_BY_TAG = _specs_by_tag()
 
 
+def _attribute_kinds(spec: BehaviourSpec) -> dict[str, str | bool]:
+    """What each attribute name of a behaviour is: a sync attribute (its BML
+    1.0 sync name), a numeric parameter (True) or another understood one
+    (False); any other name is not in the table."""
+    kinds: dict[str, str | bool] = {name: name in spec.numeric for name in spec.attributes}
+    kinds.update(spec.sync_attributes)  # a sync attribute is read as one first
+    return kinds
+
+
+# by the spec's identity (the vocabulary is loaded once; a spec holds a dict
+# and is not hashable)
+_ATTRIBUTE_KINDS = {id(spec): _attribute_kinds(spec) for spec in _SPECS_BY_TAG.values()}
+
+
+_NOTHING_DROPPED: frozenset[str] = frozenset()
 _UTF8_NAMES = frozenset({"UTF-8", "UTF8", "US-ASCII", "ASCII"})
 
 
@@ -1132,7 +1191,10 @@ def parse_bml(
             column=1,
             source=source,
         )
-    if _has_doctype(raw):
+    # A DOCTYPE is written "<!DOCTYPE" (XML names are case-sensitive, and
+    # no entity can make one): without those bytes there is none to find.
+    doctype = b"<!DOCTYPE" in raw
+    if doctype and _has_doctype(raw):
         # Refuse before libxml2 even reads the internal subset.
         raise BmlSecurityError(_DOCTYPE_MESSAGE, line=1, column=1, source=source)
     try:
@@ -1143,9 +1205,13 @@ def parse_bml(
         raise BmlSyntaxError(message, line=line, column=column, source=source) from None
     if root is None:
         raise BmlSyntaxError("empty document", line=1, column=1, source=source)
-    docinfo: Any = root.getroottree().docinfo
-    if docinfo.doctype or docinfo.internalDTD is not None:
-        raise BmlSecurityError(_DOCTYPE_MESSAGE, line=1, column=1, source=source)
+    encoding: str | None = "UTF-8"
+    if doctype or not raw.startswith(b"<") or raw.startswith(b"<?xml") or raw[1:2] == b"\0":
+        # a declaration, a byte order mark or UTF-16 without one: ask libxml2
+        docinfo: Any = root.getroottree().docinfo
+        if docinfo.doctype or docinfo.internalDTD is not None:
+            raise BmlSecurityError(_DOCTYPE_MESSAGE, line=1, column=1, source=source)
+        encoding = docinfo.encoding
     reader = _Reader(raw, source, limits)
     # Building the tree allocates many small objects and no cycles; pausing
     # the cyclic garbage collector meanwhile (as JSON decoders do) saves a
@@ -1157,10 +1223,11 @@ def parse_bml(
     gc.disable()
     try:
         block = reader.block(root)
-        text = _source_text(data, raw, docinfo.encoding)
+        text = _source_text(data, raw, encoding)
         if text:
             object.__setattr__(block, "source", text)  # see Block.source
-        return ParseResult(block, reader.final_warnings(), frozenset(reader.dropped))
+        dropped = frozenset(reader.dropped) if reader.dropped else _NOTHING_DROPPED
+        return _new_result(block, reader.final_warnings(), dropped)
     finally:
         if collecting:
             gc.enable()
