@@ -187,6 +187,25 @@ def _fap_pair_ok(pair: str, limit: float) -> bool:
 class _Reader:
     """One parse: the source for error positions, and the warnings so far."""
 
+    __slots__ = (
+        "_cursor",
+        "_line_starts",
+        "_suppressed",
+        "_text",
+        "_warned",
+        "block_id",
+        "block_lang",
+        "count_attributes",
+        "data",
+        "dropped",
+        "flat_namespaces",
+        "ids",
+        "limits",
+        "source",
+        "vocab",
+        "warnings",
+    )
+
     def __init__(self, data: bytes, source: str, limits: Limits) -> None:
         self.data = data
         self.source = source
@@ -199,11 +218,12 @@ class _Reader:
         self.dropped: set[str] = set()
         self.ids: set[str] = set()
         self.block_id = ""
+        self.block_lang: str | None = None  # the block's xml:lang
         # Every attribute has its "=" in the source (entities and DTD
         # defaults are refused): with no more of them in the whole document
         # than one element may hold, no element needs counting.
         self.count_attributes = data.count(b"=") > limits.max_attributes
-        self._text: str | None = None
+        self._text: str | None = None  # the decoded source, once a column is asked for
         self._line_starts: list[int] = []
         self._cursor: dict[int, int] = {}  # line -> where its next search starts
         self.flat_namespaces = False
@@ -222,13 +242,16 @@ class _Reader:
         if line <= 0:
             return 0
         if self._text is None:
-            self._text = self.data.decode("utf-8", "replace")
-            self._line_starts = [0]
-            self._line_starts.extend(m.end() for m in re.finditer(r"\r\n?|\n", self._text))
-        if line > len(self._line_starts):
+            # line ends as libxml2 counts them (CR LF, CR, LF), made one
+            # character each, so columns are the same; all in C, linear
+            text = self.data.decode("utf-8", "replace").replace("\r\n", "\n").replace("\r", "\n")
+            self._text = text
+            lengths = map(len, text.split("\n"))
+            self._line_starts = list(itertools.accumulate(map((1).__add__, lengths), initial=0))
+        if line >= len(self._line_starts):
             return 0
         line_start = self._line_starts[line - 1]
-        line_end = self._line_starts[line] if line < len(self._line_starts) else len(self._text)
+        line_end = self._line_starts[line]
         begin = self._cursor.get(line, line_start)
         found = self._text.find(needle, begin, min(line_end, begin + _COLUMN_WINDOW))
         if found < 0 and begin > line_start:
@@ -342,8 +365,10 @@ class _Reader:
             decls: tuple[tuple[str | None, str], ...] = ()
         else:
             nsmap = el.nsmap
-            decls = tuple(
-                (prefix, uri) for prefix, uri in nsmap.items() if parent_nsmap.get(prefix) != uri
+            decls = (
+                tuple([(p, uri) for p, uri in nsmap.items() if parent_nsmap.get(p) != uri])
+                if parent_nsmap
+                else tuple(nsmap.items())
             )
         return [
             el.tag,
@@ -375,9 +400,9 @@ class _Reader:
         """Any node kept as written: comments, PIs and elements the grammar does not name."""
         if node.tag.__class__ is not str:
             if isinstance(node, etree._Comment):
-                return Comment(node.text or "", node.tail or "")
+                return _new_comment(node.text or "", node.tail or "")
             if isinstance(node, etree._ProcessingInstruction):
-                return ProcessingInstruction(str(node.target), node.text or "", node.tail or "")
+                return _new_pi(str(node.target), node.text or "", node.tail or "")
             raise self.error(BmlSecurityError, "entity references are not allowed in BML", node)
         if depth > self.limits.max_depth:
             raise self.error(
@@ -404,19 +429,24 @@ class _Reader:
                 root,
             )
         dialect = DIALECTS[namespace]
-        block_id = root.get("id")
+        if self.count_attributes:
+            self.check_attributes(root)
+        attributes = tuple(root.items())
+        values = dict(attributes)
+        block_id = values.get("id")
         if not block_id or not block_id.strip():
             raise self.error(BmlSyntaxError, "<bml> has no id attribute", root)
         self.block_id = block_id
-        composition = root.get("composition", "MERGE")
-        if composition.upper() not in COMPOSITIONS:
+        self.block_lang = values.get(_XML_LANG)
+        composition = values.get("composition", "MERGE")
+        if composition != "MERGE" and composition.upper() not in COMPOSITIONS:
             raise self.error(
                 BmlSyntaxError,
                 f"composition {composition!r} is not one of {', '.join(COMPOSITIONS)}",
                 root,
                 'composition="',
             )
-        fields, nsmap = self.common(root, {})
+        fields, nsmap = self.common(root, {}, attributes)
         # Every namespace declaration needs the literal "xmlns" in the source
         # (entities are refused), so when all of them sit on the root, no
         # element below declares any and nsmap need not be asked again.
@@ -442,7 +472,7 @@ class _Reader:
         return _new_block(
             *fields,
             block_id,  # id
-            root.get("characterId"),  # character_id
+            values.get("characterId"),  # character_id
             composition.upper(),
             dialect,
             tuple(behaviours),
@@ -578,12 +608,15 @@ class _Reader:
         if self.count_attributes:
             self.check_attributes(el)
         attributes = tuple(el.items())
+        own_lang = False
         for item in attributes:
             name, value = item
             kind = kinds.get(name)
             if kind is None:
                 if name == "id":
                     continue
+                if name == _XML_LANG:
+                    own_lang = True
                 self.unknown_attribute(spec, name, value, behaviour_id, params, el)
             elif kind.__class__ is str:  # a sync attribute: its BML 1.0 sync name
                 ref = fast_sync_ref(value) if not aliases else None
@@ -598,14 +631,18 @@ class _Reader:
                     )
                 params.append(item)
         behaviour_type = spec.type
-        if behaviour_type == "speech" and el.get(_XML_LANG) is None:
+        if behaviour_type == "speech" and not own_lang:
             # BML 1.0: a speech's language is its own xml:lang, else the
-            # nearest enclosing element's (the block's).
-            for ancestor in el.iterancestors():
-                lang = ancestor.get(_XML_LANG)
-                if lang is not None:
-                    params.append(("lang", lang))
-                    break
+            # nearest enclosing element's (the block's, or a <required>'s).
+            if not required:
+                if self.block_lang is not None:
+                    params.append(("lang", self.block_lang))
+            else:
+                for ancestor in el.iterancestors():
+                    lang = ancestor.get(_XML_LANG)
+                    if lang is not None:
+                        params.append(("lang", lang))
+                        break
         for name in spec.required:
             for key, _ in params:
                 if key == name:
@@ -883,7 +920,8 @@ class _Reader:
                 extra = tuple(f"stroke:{n}" for n in range(2, repetition + 1))
                 syncs = syncs[:index] + extra + syncs[index:]
         if speech is not None:
-            syncs = (syncs[0], *speech.sync_ids, *syncs[1:])
+            markers = [run.id for run in speech.runs if run.__class__ is TextSync]
+            syncs = (syncs[0], *markers, *syncs[1:])
         return syncs
 
     def check_absolute_order(
@@ -939,7 +977,15 @@ class _Reader:
         for child in el:
             tag = child.tag
             if tag.__class__ is str and tag.rpartition("}")[2] == "sync":
-                sync_id = child.get("id")
+                if self.count_attributes:
+                    self.check_attributes(child)
+                sync_attributes = tuple(child.items())
+                sync_id = ref_text = None
+                for key, value in sync_attributes:
+                    if key == "id":
+                        sync_id = value
+                    elif key == "ref":
+                        ref_text = value
                 if not sync_id:
                     raise self.error(
                         BmlSyntaxError, f"<sync> in the text of {behaviour_id!r} has no id", child
@@ -959,13 +1005,12 @@ class _Reader:
                         "<sync> markers",
                         child,
                     )
-                ref_text = child.get("ref")
                 ref = None
                 if ref_text:
                     ref = fast_sync_ref(ref_text) if not aliases else None
                     if ref is None:
                         ref = self.sync_ref(ref_text, child, "ref", aliases)
-                sync_fields, sync_inner = self.common(child, inner)
+                sync_fields, sync_inner = self.common(child, inner, sync_attributes)
                 if len(child):
                     sync_fields[3] = tuple([self.other(c, sync_inner, 4) for c in child])
                 marker = _new_text_sync(*sync_fields, sync_id, ref)
@@ -1101,6 +1146,8 @@ _new_constraint = builder(Constraint)
 _new_relation = builder(Relation)
 _new_required = builder(Required)
 _new_block = builder(Block, every_field=True)
+_new_comment = builder(Comment)
+_new_pi = builder(ProcessingInstruction)
 _new_result = builder(ParseResult)
 
 

@@ -1,13 +1,14 @@
 """The parser's fast paths give what the general ones give.
 
 ``nodes.builder`` constructors (slots set directly) against the dataclasses'
-own constructors, and ``fast_sync_ref`` (one match for the common shapes)
-against the full scanner of :mod:`realizer.bml_parser.syncref`.
+own constructors, and ``fast_sync_ref`` (a few string methods for the
+common shapes) against the full scanner of :mod:`realizer.bml_parser.syncref`.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import pickle
 
 import pytest
 from hypothesis import given
@@ -37,6 +38,47 @@ def test_a_builder_makes_what_the_constructor_makes(cls: type) -> None:
 def test_no_builder_for_a_class_with_fields_outside_its_constructor() -> None:
     with pytest.raises(TypeError):
         builder(Block)  # Block.source is set by the parser, not passed
+
+
+def test_a_builder_of_every_field_sets_the_fields_outside_the_constructor_too() -> None:
+    fields = dataclasses.fields(Block)
+    values = [f"v{index}" for index, _ in enumerate(fields)]
+    built = builder(Block, every_field=True)(*values)
+    assert type(built) is Block
+    assert built.source == values[-1]
+    assert [getattr(built, f.name) for f in fields] == values
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        built.source = "changed"  # type: ignore[misc]
+
+
+def test_what_a_builder_makes_pickles_and_copies_as_its_class() -> None:
+    ref = builder(SyncRef)("h1:stroke+0.2", "h1", "stroke", None, None, 0.2)
+    again = pickle.loads(pickle.dumps(ref))
+    assert type(again) is SyncRef and again == ref and again.raw == ref.raw
+    assert dataclasses.replace(ref, offset=1.0).offset == 1.0
+
+
+@pytest.mark.parametrize(
+    ("raw", "expected"),
+    [
+        ("h1:stroke+0.2", SyncRef("h1:stroke+0.2", "h1", "stroke", offset=0.2)),
+        ("nod1:start", SyncRef("nod1:start", "nod1", "start")),
+        ("g_2:end-1.", SyncRef("g_2:end-1.", "g_2", "end", offset=-1.0)),
+        ("2.5", SyncRef("2.5", None, None, offset=2.5)),
+        (".5", SyncRef(".5", None, None, offset=0.5)),
+    ],
+)
+def test_the_common_shapes_take_the_fast_path(raw: str, expected: SyncRef) -> None:
+    assert fast_sync_ref(raw) == expected
+
+
+@pytest.mark.parametrize(
+    "raw",
+    ["-1", " 2", "1e3", "b1:h1:start", "h1:stroke:2", "my-nod:start", "h1:sync.1", "é:start",
+     "h1:start+", "h1:start+1e2", "h1:start+3601", "3601", "h1:", ":start", "1.2.3", "h1:start+²"],
+)  # fmt: skip
+def test_anything_else_is_left_to_the_full_parser(raw: str) -> None:
+    assert fast_sync_ref(raw) is None
 
 
 REFS = st.one_of(
