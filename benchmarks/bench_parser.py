@@ -52,10 +52,11 @@ def corpus_files() -> list[tuple[Path, bytes]]:
     """The examples and ``REALIZER_BML_CORPUS``'s documents that the parser accepts."""
     paths = sorted((ROOT / "examples" / "bml").glob("*.xml"))
     # more BML from elsewhere (for example a conformance corpus): a folder of
-    # .xml files named by REALIZER_BML_CORPUS
+    # .xml files named by REALIZER_BML_CORPUS, its subfolders included (the
+    # shared corpus keeps each source's documents in a folder of their own)
     extra = os.environ.get("REALIZER_BML_CORPUS")
     if extra and Path(extra).is_dir():
-        paths += sorted(Path(extra).glob("*.xml"))
+        paths += sorted(Path(extra).rglob("*.xml"))
     documents = []
     for path in paths:
         data = path.read_bytes()
