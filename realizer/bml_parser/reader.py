@@ -811,6 +811,8 @@ class _Reader:
             if values.get("type", "").upper() == "FACS":
                 kept = [(k, v) for k, v in params if k in ("au", "side", "amount")]
                 return "faceFacs", kept, ""
+            if "type" not in values:
+                return spec.type, params, f"<face> {behaviour_id!r} needs type (a lexeme or FACS)"
             kept = [(k, v) for k, v in params if k != "type"]
             return "faceLexeme", [("lexeme", values["type"]), *kept], ""
         renamed = [(draft.attributes.get(k, k), v) for k, v in params]

@@ -82,3 +82,16 @@ def test_the_older_draft_spelling_still_reads() -> None:
     result = parse_bml((EXAMPLES / "13_draft_dialect.xml").read_bytes())
     assert result.warnings == ()
     assert {b.type for b in result.block.behaviours} == {"faceFacs", "head"}
+
+
+@pytest.mark.parametrize(
+    "document",
+    [
+        '<bml id="b"><face id="f"/></bml>',  # no namespace: read as the draft
+        '<bml xmlns="http://www.mindmakers.org/projects/BML" id="b"><face id="f"/></bml>',
+    ],
+)
+def test_a_draft_face_without_type_is_refused_with_a_warning(document: str) -> None:
+    # found by the block-lifecycle property test: a KeyError escaped the parser
+    [warning] = parse_bml(document).warnings
+    assert str(warning.type) == "CANNOT_CREATE_BEHAVIOR" and "'type'" in warning.message
