@@ -952,6 +952,11 @@ BROW_BAND_BELOW_M = 0.001
 BROW_FOREHEAD_M = 0.026
 BROW_TEMPLE_M = 0.02
 BROW_LID_CLEAR_M = 0.002
+#: Ear tables: the half-axes (x, y, z, metres) of the ellipsoid that moves
+#: whole round the ear's feature points, and where (in its units) the
+#: motion has faded out.
+EAR_CORE_M = (0.016, 0.036, 0.02)
+EAR_FADE = 1.8
 #: The middle brow's FAPs (33, 34) carry the rest of the brow this share of
 #: the way: moving 4.3 alone bent the arched brow into a tent (up) or a V
 #: (down); a brow's middle does not move without its ends.
@@ -1769,16 +1774,24 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     )
     ease(64, right, 0.8 * nose, (1.0, 1.0, 1.0), -20)
 
-    # Ears: each moves whole (the skin lateral of the skull where it is).
-    for fap, _point, direction, sign in (
-        (65, "10.1", up, 1.0),
-        (66, "10.2", up, -1.0),
-        (67, "10.3", left, 1.0),
-        (68, "10.4", right, -1.0),
-    ):
-        ear_h = float(fp["10.1"][1] - fp["10.5"][1])
-        ear = skin[(sign * v[skin, 0] > 0.062) & (v[skin, 2] < 0.08) & (v[skin, 1] < 0.76)]
-        ease(fap, direction, ear_h, (1.0, 1.0, 1.0), -60, ear)
+    # Ears (65..68): each moves whole, as a FaceDefMesh table of a smooth
+    # weight: 1 within an ellipsoid round the ear (the feature points 10.x of
+    # its side, EAR_CORE_M half-axes), falling as sin^2 to 0 at EAR_FADE times
+    # that distance, on the skin of its side (a masked sphere creased the
+    # scalp where the mask ended).
+    for fap, direction, sign in ((65, up, 1.0), (66, up, -1.0), (67, left, 1.0), (68, right, -1.0)):
+        points = np.array([fp[f"10.{k}"] for k in range(1 if sign > 0 else 2, 11, 2)])
+        centre = points.mean(axis=0)
+        # the core takes in every feature point of the ear (each moves one FAPU)
+        reach = float(np.linalg.norm((points - centre) / np.asarray(EAR_CORE_M), axis=1).max())
+        core = np.asarray(EAR_CORE_M) * max(1.0, 1.05 * reach)
+        distance = np.linalg.norm((v - centre) / core, axis=1)
+        weight = np.zeros(n_all)
+        side_skin = skin[sign * v[skin, 0] > 0.0]
+        weight[side_skin] = 1.0 - rise(distance[side_skin], 1.0, EAR_FADE)
+        keep = np.flatnonzero(weight > 0.0)
+        per_unit = weight[:, None] * np.asarray(direction)[None, :]
+        deformers.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], keep))
 
     feature_points = {
         name: (round(float(p[0]), 6), round(float(p[1]), 6), round(float(p[2]), 6))
