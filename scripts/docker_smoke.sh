@@ -95,9 +95,11 @@ if [ "$BASE" = debian ]; then
             "${hooks[@]}" --customize-hook='chroot "$1" update-ca-certificates' \
             --customize-hook='rm -rf "$1"/var/lib/apt/lists/* "$1"/var/cache/apt/*' \
             bookworm "$WORK/base.tar" http://deb.debian.org/debian
-        # pip in a venv uses its own CA bundle unless told to use the system's
+        # pip in a venv and npm use their own CA bundles unless told to use
+        # the system's (npm runs when the checkout lacks three.js)
         "${PODMAN[@]}" import --change 'CMD ["python3"]' \
             --change 'ENV PIP_CERT=/etc/ssl/certs/ca-certificates.crt' \
+            --change 'ENV NODE_EXTRA_CA_CERTS=/etc/ssl/certs/ca-certificates.crt' \
             "$WORK/base.tar" "$BASE" >/dev/null
         rm -f "$WORK/base.tar"
     fi
