@@ -701,20 +701,22 @@ class _Reader:
         ):
             problem = f"<bmla:parametervaluechange> {behaviour_id!r} has no <bmla:trajectory>"
 
+        # the lossless fields of the element (as _new_element takes them)
+        lossless = (
+            tag,
+            attributes,
+            el.text or "",
+            children,
+            el.tail or "",
+            el.prefix,
+            decls,
+            el.sourceline or 0,
+        )
         if problem:
             self.warn(
                 WarningType.CANNOT_CREATE_BEHAVIOR, problem + "; it is ignored", el, behaviour_id
             )
-            return _new_element(
-                tag,
-                attributes,
-                el.text or "",
-                children,
-                el.tail or "",
-                el.prefix,
-                decls,
-                el.sourceline or 0,
-            )
+            return _new_element(*lossless)
 
         syncs = spec.syncs
         if speech is not None or repeated:
@@ -727,14 +729,7 @@ class _Reader:
             if times > 1:
                 self.check_absolute_order(syncs, sync_refs, el, behaviour_id)
         return _new_behaviour(
-            tag,
-            attributes,
-            el.text or "",
-            children,
-            el.tail or "",
-            el.prefix,
-            decls,
-            el.sourceline or 0,
+            *lossless,
             behaviour_id,  # id
             behaviour_type,  # type
             spec.dialect,  # dialect

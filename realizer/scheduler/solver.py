@@ -50,7 +50,7 @@ from __future__ import annotations
 import itertools
 import math
 import operator
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -627,6 +627,41 @@ def _root(parent: list[int], x: int) -> int:
     return x
 
 
+def _cost_components(
+    problem: Problem,
+    ties: Sequence[tuple[int, int, float]],
+    node: Callable[[int], int],
+    n_nodes: int,
+    index_of: Mapping[int, int] | Sequence[int] | None,
+) -> tuple[list[int], int, list[int]]:
+    """The cost components of a problem: a union-find over behaviours (each
+    held together by its phases) and keys of no behaviour (``node`` maps a
+    key to its node), joined by the ties and the behaviours' links. Returns
+    the union-find, the component of the block start, and one start of each
+    other component (the starts that get the start-early pull; ``index_of``
+    maps a start key to the caller's index, None when they are the same)."""
+    group = list(range(n_nodes))
+    for a, b, _ in ties:
+        ga, gb = _root(group, node(a)), _root(group, node(b))
+        if ga != gb:
+            group[ga] = gb
+    for a, b in problem._links:
+        ga, gb = _root(group, a), _root(group, b)
+        if ga != gb:
+            group[ga] = gb
+    pinned_comp = _root(group, node(0))
+    pulled: list[int] = []
+    seen = {pinned_comp}
+    for k in problem._starts:
+        if index_of is not None:
+            k = index_of[k]
+        comp = _root(group, node(k))
+        if comp not in seen:
+            seen.add(comp)
+            pulled.append(k)
+    return group, pinned_comp, pulled
+
+
 def solve_dense(problem: Problem) -> dict[Key, float]:
     """:func:`solve` for small problems: the same method on dense matrices, numpy only.
 
@@ -707,27 +742,11 @@ def _dense_times(problem: Problem) -> list[float]:
     # keys of no behaviour, joined by the ties. Those without the block
     # start may shift freely: one start of each gets the start-early pull.
     owner, n_chains = problem._owner, problem._behaviours
-    group = list(range(n_chains + n_keys))
 
     def node(k: int) -> int:
         return owner[k] if owner[k] >= 0 else n_chains + k
 
-    for a, b, _ in ties:
-        ga, gb = _root(group, node(a)), _root(group, node(b))
-        if ga != gb:
-            group[ga] = gb
-    for a, b in problem._links:
-        ga, gb = _root(group, a), _root(group, b)
-        if ga != gb:
-            group[ga] = gb
-    pinned_comp = _root(group, node(0))
-    pulled: list[int] = []
-    seen = {pinned_comp}
-    for k in problem._starts:
-        comp = _root(group, node(k))
-        if comp not in seen:
-            seen.add(comp)
-            pulled.append(k)
+    group, pinned_comp, pulled = _cost_components(problem, ties, node, n_chains + n_keys, None)
 
     # Objective: sum w (x_i - x_j + c)^2 over phases (i: the later point),
     # as 1/2 x'Hx + g'x, plus the pull on the pulled starts.
@@ -1690,29 +1709,10 @@ def _tiny_reduced(
 
     # Cost components and pulled starts, as _dense_times.
     owner, n_chains = problem._owner, problem._behaviours
-    group = list(range(n_chains + len(problem.keys)))
-    nodes = [owner[k] if owner[k] >= 0 else n_chains + k for k in kept_keys]
-
-    def node(r: int) -> int:
-        return nodes[r]
-
-    for a, b, _ in ties:
-        ga, gb = _root(group, node(a)), _root(group, node(b))
-        if ga != gb:
-            group[ga] = gb
-    for ca, cb in problem._links:
-        ga, gb = _root(group, ca), _root(group, cb)
-        if ga != gb:
-            group[ga] = gb
-    pinned_comp = _root(group, node(0))
-    pulled: list[int] = []
-    seen = {pinned_comp}
-    for k in problem._starts:
-        k = index_of[k]
-        comp = _root(group, node(k))
-        if comp not in seen:
-            seen.add(comp)
-            pulled.append(k)
+    node = [owner[k] if owner[k] >= 0 else n_chains + k for k in kept_keys].__getitem__
+    group, pinned_comp, pulled = _cost_components(
+        problem, ties, node, n_chains + len(problem.keys), index_of
+    )
 
     # Every row x_i - x_j >= b of the full problem (index -1: zero), the
     # springs w (x_i - x_j + c)^2 (i: the later point), and which rows a
