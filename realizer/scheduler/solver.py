@@ -627,6 +627,25 @@ def _root(parent: list[int], x: int) -> int:
     return x
 
 
+def _equality_classes(
+    ties: Iterable[tuple[int, int, float]], n_keys: int
+) -> tuple[list[int], list[float]] | None:
+    """The equality classes of ``t_a - t_b = d`` ties: a weighted union-find
+    (parent, offset of each key from its parent), or None when two ties
+    contradict each other."""
+    parent = list(range(n_keys))
+    offset = [0.0] * n_keys
+    for a, b, d in ties:
+        ra, rb = _find(parent, offset, a), _find(parent, offset, b)
+        if ra == rb:
+            if abs(offset[a] - offset[b] - d) > TOLERANCE:
+                return None
+        else:  # t_ra - t_rb = d + offset_b - offset_a (a root's own offset is 0)
+            parent[ra] = rb
+            offset[ra] = d + offset[b] - offset[a]
+    return parent, offset
+
+
 def _cost_components(
     problem: Problem,
     ties: Sequence[tuple[int, int, float]],
@@ -699,17 +718,11 @@ def _dense_times(problem: Problem) -> list[float]:
     if np.count_nonzero(rigid):
         for p in np.flatnonzero(rigid).tolist():
             ties.append((phase_b[p], phase_a[p], flat[4 * p + 2]))
-    parent = list(range(n_keys))
-    offset = [0.0] * n_keys
-    for a, b, d in ties:
-        ra, rb = _find(parent, offset, a), _find(parent, offset, b)
-        if ra == rb:
-            if abs(offset[a] - offset[b] - d) > TOLERANCE:
-                conflict = find_conflict(problem)
-                raise Infeasible(conflict or frozenset(), "contradictory equalities")
-        else:  # t_ra - t_rb = d + offset_b - offset_a (a root's own offset is 0)
-            parent[ra] = rb
-            offset[ra] = d + offset[b] - offset[a]
+    classes = _equality_classes(ties, n_keys)
+    if classes is None:
+        conflict = find_conflict(problem)
+        raise Infeasible(conflict or frozenset(), "contradictory equalities")
+    parent, offset = classes
     tied = {k for a, b, _ in ties for k in (a, b)}
     for k in tied:  # flatten: parent[k] is k's root, offset[k] relative to it
         _find(parent, offset, k)
@@ -1675,16 +1688,10 @@ def _tiny_reduced(
     for a, b, spring in zip(phase_a, phase_b, phase_springs, strict=True):
         if spring[5] - spring[4] <= TOLERANCE:
             ties.append((b, a, spring[4]))
-    parent = list(range(n_keys))
-    offset = [0.0] * n_keys
-    for a, b, d in ties:
-        ra, rb = _find(parent, offset, a), _find(parent, offset, b)
-        if ra == rb:
-            if abs(offset[a] - offset[b] - d) > TOLERANCE:
-                return None  # contradictory: the numpy path names the conflict
-        else:
-            parent[ra] = rb
-            offset[ra] = d + offset[b] - offset[a]
+    classes = _equality_classes(ties, n_keys)
+    if classes is None:
+        return None  # contradictory: the numpy path names the conflict
+    parent, offset = classes
     for k in range(n_keys):
         up = parent[k]
         if parent[up] != up:  # not yet a child of its root
