@@ -97,7 +97,7 @@ def register(subparsers: Any) -> None:
         type=int,
         metavar="N",
         help="processes that parse and plan submitted BML, so no submitter takes CPU from "
-        "the frame clock (default 2; 0: threads of the service's own process)",
+        "the frame clock (default 0: threads of the service's own process)",
     )
     parser.set_defaults(run=run)
 

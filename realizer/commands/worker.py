@@ -73,9 +73,9 @@ def cluster_parser(
     parser.add_argument(
         "--planner-processes",
         type=int,
-        default=2,
+        default=0,
         metavar="N",
-        help="processes that parse and plan this worker's blocks (default 2; 0: threads)",
+        help="processes that parse and plan this worker's blocks (default 0: threads)",
     )
     parser.add_argument(
         "--lease-ttl",

@@ -113,9 +113,10 @@ class ServiceConfig:
     #: for a planner process, or, with none, parses and plans itself)
     planner_threads: int = 4
     #: processes that parse and plan submitted blocks (realizer.service.planner),
-    #: so a submitter's CPU is never the clock's; 0: the planner threads
-    #: parse and plan in the service's own process (sharing its interpreter lock)
-    planner_processes: int = 2
+    #: so a submitter's CPU is never the clock's; 0 (the default: measured
+    #: better on 2 cores, docs/service.md): the planner threads parse and
+    #: plan in the service's own process (sharing its interpreter lock)
+    planner_processes: int = 0
 
     def __post_init__(self) -> None:
         if not 1 <= self.planner_threads <= 64:

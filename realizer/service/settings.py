@@ -20,7 +20,7 @@ but the tokens has a key::
     stomp_layout = "asap"          # asap, greta or vhmsg (protocols/stomp.md)
     log_level = "info"             # debug, info, warning, error
     log_format = "json"            # text or json
-    planner_processes = 2          # parse and plan in 2 processes; 0: threads
+    planner_processes = 2          # parse and plan in 2 processes (default 0: threads)
 
     [serve.limits]                 # any named limit (protocols/README.md)
     viewers = 200
@@ -79,7 +79,7 @@ class ServeSettings:
     stomp_feedback_topic: str | None = None
     log_level: str = "info"
     log_format: str = "text"
-    planner_processes: int = 2
+    planner_processes: int = 0
     limits: dict[str, int] = field(default_factory=dict)
     submit_token: str | None = None
     view_token: str | None = None

@@ -1,7 +1,7 @@
 """Hostile input over real WebSockets: no client can hurt another (issue 10).
 
 ``realizer serve`` as it is deployed (its own process, the default
-settings: planner processes, real sessions, parser and face) on a free
+settings, real sessions, parser and face) on a free
 loopback port. A hostile client sends every input of the audit
 (:mod:`realizer.service.hostile`) while a viewer of another character counts
 frames and that character's submitter measures how long ``accepted`` takes.
@@ -237,11 +237,10 @@ def test_hostile_inputs_hurt_no_other_client() -> None:
 
     why_before = overloaded()
     began = time.perf_counter()
-    with serve_process() as server:  # the deployed default, planner processes included
+    with serve_process() as server:  # the deployed default
         figures = asyncio.run(scenario(server))
     print(f"hostile test figures ({time.perf_counter() - began:.1f} s): {figures}")
     assert figures["frames"] > 30
-    assert figures["processes"] >= 3, figures  # the fork server and two planners
     assert figures["memory_growth"] < MEMORY_GROWTH, figures
     why = why_before or overloaded()
     if why:
