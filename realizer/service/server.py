@@ -392,14 +392,14 @@ class RealizerService:
         self._static = _StaticFiles()
         # The clock never waits for a submitter: each message is handled on
         # one of these threads, one message per connection at a time (in
-        # order), which parse and plan in planner processes (by default) or
-        # themselves; the stage's lock per character keeps each session
-        # single-threaded and lets the clock skip, not wait for, a character
-        # being admitted or committed.
+        # order), which parse and plan themselves or, with
+        # config.planner_processes, in planner processes; the stage's lock
+        # per character keeps each session single-threaded and lets the
+        # clock skip, not wait for, a character being admitted or committed.
         self._planner = ThreadPoolExecutor(
             max_workers=config.planner_threads, thread_name_prefix="realizer-planner"
         )
-        # ... and, by default, in planner processes (started by start()).
+        # ... or in planner processes (config.planner_processes; start()).
         self._planner_pool: PlannerPool | None = None
         # The sparse solver's scipy is imported lazily; import it here, before
         # any frame, so a first big block does not import it on a planner

@@ -14,7 +14,7 @@ After every step it checks that
 and, once the clock has passed every block's end, that nothing is open.
 
 The same property holds with blocks parsed and planned in a planner process
-(realizer.service.planner, the service's default), on a third as many
+(realizer.service.planner, ``--planner-processes N``), on a third as many
 examples. CI runs a bounded number of examples (a few seconds); for a long run by
 hand set ``REALIZER_PROPERTY_EXAMPLES``, e.g. to 2000.
 """
