@@ -1517,16 +1517,20 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         deformers.append(
             signed_table(fap, shape(smile), shape(frown), fp_index[point], up, mouth_parts)
         )
+    # The artist's stretch also pulls the corner down (5 mm at 200 MW, as
+    # far as F12 raises it in joy, whose profile sets both): Table 7's
+    # stretch is horizontal, so the shape's vertical part is left out (the
+    # corner still goes back round the face's curve).
     for fap, side, stretch, axis in (
         (6, "l", "mouthStretchLeft", left),
         (7, "r", "mouthStretchRight", right),
         (53, "l", "mouthStretchLeft", left),
         (54, "r", "mouthStretchRight", right),
     ):
+        level = shape(stretch)
+        level[:, 1] = 0.0
         deformers.append(
-            signed_table(
-                fap, shape(stretch), None, corner_points[side], axis, mouth_parts, CORNER_SHARE
-            )
+            signed_table(fap, level, None, corner_points[side], axis, mouth_parts, CORNER_SHARE)
         )
     # Chin raiser: the chin below the lower lip, up; a raised cosine (flat
     # at 2.10 and at the rim) where a linear falloff made the chin a cone's

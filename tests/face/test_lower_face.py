@@ -164,3 +164,17 @@ def test_thrusting_the_tongue_slides_it_out_whole(face: Face) -> None:
     tip = offsets[face.feature_vertex("6.1"), 2]
     assert tip == pytest.approx(300 * face.fapu.mw, rel=0.02)
     assert offsets[back, 2].mean() > 0.3 * tip
+
+
+@pytest.mark.parametrize("inner, outer, corner", [(6, 53, "2.4"), (7, 54, "2.5")])
+def test_stretching_a_lip_corner_moves_it_out_not_down(
+    face: Face, inner: int, outer: int, corner: str
+) -> None:
+    """Table 7's stretch is horizontal; the artist's mouthStretch also pulled
+    the corner down 5 mm at 200 MW (as far as F12 raised it in joy, whose
+    profile sets both). Out one MW per unit (the pair's mean), at most a
+    tenth of that up or down."""
+    d = moved(face, {inner: 200, outer: 200})[face.feature_vertex(corner)]
+    out = abs(d[0])
+    assert out == pytest.approx(200 * face.fapu.mw, rel=0.1)
+    assert abs(d[1]) < 0.1 * out
