@@ -12,6 +12,8 @@ from contextlib import asynccontextmanager
 from typing import Any
 
 import pytest
+from websockets.asyncio.client import connect
+from websockets.exceptions import ConnectionClosed
 
 from realizer.service.limits import ServiceLimits
 from realizer.service.server import FaceAssets, RealizerService, ServiceConfig
@@ -57,6 +59,23 @@ async def http_json(port: int, path: str) -> Any:
     status, _, body = await http_get(port, path)
     assert status == 200
     return json.loads(body)
+
+
+async def viewers_and_close_codes(
+    base: str, count: int, timeout: float
+) -> tuple[list[Any], list[int | None]]:
+    """Open ``count`` viewers of characters v0, v1, ... on ``base``; each one's
+    close code if it was closed instead of getting its first message (the
+    mesh), else None."""
+    viewers = [await connect(f"{base}/view?character=v{n}") for n in range(count)]
+    codes: list[int | None] = []
+    for viewer in viewers:
+        try:
+            await asyncio.wait_for(viewer.recv(), timeout)
+            codes.append(None)
+        except ConnectionClosed:
+            codes.append(viewer.close_code)
+    return viewers, codes
 
 
 def judge_frame_gaps(window: list[float], bound: float, where: str) -> None:

@@ -571,19 +571,14 @@ def test_viewers_through_a_gateway_make_a_bounded_number_of_characters(cluster: 
 
     from websockets.asyncio.client import connect
 
+    from tests.service.harness import viewers_and_close_codes
+
     limits = ["--limit", "viewer_characters=2", "--limit", "characters=6"]
     _, (gateway,) = cluster.start(workers=1, gateways=1, worker_args=limits)
     base = f"ws://127.0.0.1:{gateway.port}"
 
     async def scenario() -> tuple[list[int | None], bool]:
-        viewers = [await connect(f"{base}/view?character=v{n}") for n in range(4)]
-        codes: list[int | None] = []
-        for viewer in viewers:
-            try:
-                await asyncio.wait_for(viewer.recv(), 10 * UNIT)  # the mesh
-                codes.append(None)
-            except ConnectionClosed:
-                codes.append(viewer.close_code)
+        viewers, codes = await viewers_and_close_codes(base, 4, 10 * UNIT)
         async with connect(f"{base}/bml?format=json&character=carol") as submitter:
             await submitter.recv()  # welcome
             await submitter.send(smile("c1", 0.2, "carol"))

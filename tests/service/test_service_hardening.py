@@ -23,7 +23,7 @@ from realizer.service.server import ClockStats, FaceAssets
 from realizer.service.stage import Stage, _guess_block_id
 from tests.service.conftest import UNIT
 from tests.service.doubles import FakeFace, FakeSession, fake_deform, smile_bml
-from tests.service.harness import http_json, running_service
+from tests.service.harness import http_json, running_service, viewers_and_close_codes
 
 ASSETS = FaceAssets(FakeFace(), fake_deform)  # type: ignore[arg-type]
 
@@ -143,14 +143,7 @@ def test_viewers_alone_make_a_bounded_number_of_characters() -> None:
     async def scenario() -> tuple[list[int | None], bool]:
         async with running_service(FakeSession, ASSETS, limits=limits) as service:
             base = f"ws://127.0.0.1:{service.port}"
-            viewers = [await connect(f"{base}/view?character=v{n}") for n in range(5)]
-            codes: list[int | None] = []
-            for viewer in viewers:
-                try:
-                    await asyncio.wait_for(viewer.recv(), 5 * UNIT)  # the mesh
-                    codes.append(None)
-                except ConnectionClosed:
-                    codes.append(viewer.close_code)
+            viewers, codes = await viewers_and_close_codes(base, 5, 5 * UNIT)
             async with connect(f"{base}/bml?format=json&character=carol") as submitter:
                 await read_json(submitter)
                 await submitter.send(smile_bml("c1"))
