@@ -81,8 +81,6 @@ def _readers(port: int, viewers: int) -> None:
 async def _measure(viewers: int, rounds: int) -> dict[str, tuple[float, float]]:
     from dataclasses import replace
 
-    from websockets.protocol import State
-
     from realizer.service import assets as service_assets
     from realizer.service.limits import DEFAULT_LIMITS
     from realizer.service.server import WRITE_LIMIT, RealizerService, ServiceConfig, binary_frame
@@ -141,14 +139,7 @@ async def _measure(viewers: int, rounds: int) -> dict[str, tuple[float, float]]:
             # object built and flushed each viewer's frame
             for viewer in every:
                 connection = viewer.connection
-                if (
-                    viewer.idle
-                    and viewer.latest is None
-                    and not viewer.control
-                    and not viewer.audio_queue
-                    and connection.protocol.state is State.OPEN
-                    and connection.transport.get_write_buffer_size() < WRITE_LIMIT
-                ):
+                if viewer.writes_at_once(WRITE_LIMIT):
                     connection.protocol.send_binary(payload)
                     connection.send_data()
 

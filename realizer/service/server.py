@@ -272,6 +272,20 @@ class Viewer:
         self.audio_queue.append(message)
         self.wake.set()
 
+    def writes_at_once(self, write_limit: int) -> bool:
+        """Whether a frame offered now may go straight to the socket: the
+        pump is idle with nothing waiting (mailbox, control, audio), the
+        connection is open and its buffer holds under ``write_limit`` bytes."""
+        connection = self.connection
+        return (
+            self.idle
+            and self.latest is None
+            and not self.control
+            and not self.audio_queue
+            and connection.protocol.state is State.OPEN
+            and connection.transport.get_write_buffer_size() < write_limit
+        )
+
     def offer(self, frame: bytes, write_limit: int = 0, wire: bytes | None = None) -> None:
         """Send the newest frame, or put it in the mailbox (replacing an
         unsent one) when the viewer's socket buffer holds ``write_limit``
@@ -284,14 +298,7 @@ class Viewer:
         """
         self.offered += 1
         connection = self.connection
-        if (
-            self.idle
-            and self.latest is None
-            and not self.control
-            and not self.audio_queue
-            and connection.protocol.state is State.OPEN
-            and connection.transport.get_write_buffer_size() < write_limit
-        ):
+        if self.writes_at_once(write_limit):
             try:
                 # The WebSocket frame's bytes straight to the socket: what
                 # websockets' send_binary would write for this server-side,
