@@ -60,6 +60,7 @@ import math
 import subprocess
 import sys
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -858,6 +859,68 @@ def lip_profile(x: FloatArray, centre: float, corner: float) -> FloatArray:
     return out
 
 
+#: The lip FAPs between middle and corner (8..11 inner, 55..58 outer): their
+#: band follows lip_side_profile along the whole lip (no floor), which
+#: reaches 0 at the corner's share of the way from the midline to the corner
+#: (towards the other lip, positive values, it ends sooner: there the
+#: corner's triangles, pressed against the other lip, fold first) ...
+LIP_SIDE_FAPS = frozenset({8, 9, 10, 11, 55, 56, 57, 58})
+LIP_SIDE_CORNER = {
+    ("upper", "inner", -1): (0.95, 1.0),
+    ("upper", "inner", 1): (0.95, 1.0),
+    ("lower", "inner", -1): (0.95, 1.0),
+    ("lower", "inner", 1): (0.95, 1.0),
+    ("upper", "outer", -1): (0.92, 1.0),
+    ("upper", "outer", 1): (0.92, 1.0),
+    ("lower", "outer", -1): (0.92, 1.0),
+    ("lower", "outer", 1): (0.85, 1.5),
+}
+#: ... and on the middle's side 0 this share of that distance past the midline.
+LIP_SIDE_MIRROR_SHARE = 0.75
+
+
+def lip_side_profile(
+    x: FloatArray, centre: float, corner: float, end_share: float = 0.95, power: float = 1.0
+) -> FloatArray:
+    """lip_profile for a point between the lip's middle and its corner
+    (``centre`` != 0), shaped so that the lip's contour, which hm08 samples
+    with five vertices from the middle to each corner, bends as a curve and
+    not as a polyline with one sharp vertex: flat at the feature point (1)
+    and falling as a quarter cosine to 0 at ``end_share`` of the way to the
+    corner (``corner`` is where lip_profile ends, LIP_CORNER_SHARE of the
+    way), and on the middle's side as a raised cosine that reaches 0
+    LIP_SIDE_MIRROR_SHARE of that distance past the midline (0.15 at the
+    mirror point). lip_profile's cos² falling to 0 at the mirror point,
+    joined to the band by the harmonic fill (linear across the lip), made a
+    V (10-, 11-) or a triangle (57-, 58-) with a sharp vertex at the
+    feature point."""
+    end = corner / LIP_CORNER_SHARE * end_share
+    s = (1.0 if centre >= 0 else -1.0) * x
+    c = abs(centre)
+    out = np.zeros_like(x)
+    outer = (s >= c) & (s < end)
+    out[outer] = np.cos(0.5 * np.pi * (s[outer] - c) / (end - c)) ** power
+    mirror = LIP_SIDE_MIRROR_SHARE * end
+    inner = (s < c) & (s > -mirror)
+    out[inner] = np.cos(0.5 * np.pi * (c - s[inner]) / (c + mirror)) ** 2
+    return out
+
+
+def smile_curve(shape: FloatArray, v: FloatArray, corner: float) -> FloatArray:
+    """The artist's mouthSmile* shape (offsets, metres) with its lift along
+    the mouth curved: each vertex's vertical offset times t = x / ``corner``
+    (the lip corner's x, so 0 on the midline and 1 at the corner; clipped to
+    0..1), so the lift grows as about t² from the middle to the corner.
+    The artist's lift grows linearly (t), which makes the lip line a straight
+    diagonal from the middle to the raised corner; a smiling mouth's line
+    stays level in the middle and curves up towards the corner. The corner
+    and everything beyond it (the cheek) keep the artist's lift, as do the
+    motions outwards and back."""
+    out = shape.copy()
+    out[:, 1] *= np.clip(v[:, 0] / corner, 0.0, 1.0)
+    return out
+
+
 def harmonic_fill(
     v: FloatArray,
     triangles: IntArray,
@@ -903,10 +966,15 @@ def lip_field(
     lip: IntArray,
     other_lip: IntArray,
     anchor: FloatArray,
+    floor: float = LIP_BAND_FLOOR,
+    profile: Callable[[FloatArray, float, float], FloatArray] = lip_profile,
+    inside: IntArray | None = None,
 ) -> FloatArray:
     """The weight (0..1 per vertex) with which a lip midpoint FAP moves the
-    skin: lip_profile on the vertices of ``lip`` within LIP_BAND_M of the
-    contour's polyline (corner, midpoints, corner), 0 on ``other_lip`` and
+    skin: ``profile`` (lip_profile) on the vertices of ``lip`` within
+    LIP_BAND_M of the contour's polyline (corner, midpoints, corner) where
+    it is at least ``floor``, 0 on ``other_lip`` (but for its vertices in
+    ``inside``, the mouth's pocket, which then follow harmonically) and
     on skin farther than LIP_REACH_M from ``anchor``, harmonic on the rest
     of the skin (so it varies smoothly over the lips, into the mouth and
     towards nose and chin)."""
@@ -919,16 +987,54 @@ def lip_field(
     corner = LIP_CORNER_SHARE * float(abs(points[0][0]))
     band = lip[dist < LIP_BAND_M]
     # Near the corners the harmonic part takes over (the lips meet there).
-    band = band[lip_profile(v[band, 0], centre, corner) >= LIP_BAND_FLOOR]
+    band = band[profile(v[band, 0], centre, corner) >= floor]
     far = skin[np.linalg.norm(v[skin] - anchor, axis=1) > LIP_REACH_M]
-    zero = np.setdiff1d(np.union1d(far, other_lip), band)
+    still = other_lip if inside is None else np.setdiff1d(other_lip, inside)
+    zero = np.setdiff1d(np.union1d(far, still), band)
     fixed = np.concatenate([band, zero])
-    values = np.concatenate([lip_profile(v[band, 0], centre, corner), np.zeros(len(zero))])
+    values = np.concatenate([profile(v[band, 0], centre, corner), np.zeros(len(zero))])
     free = np.setdiff1d(skin, fixed)
     out = harmonic_fill(v, triangles, fixed, values, free)
     # The feature point moves one FAPU per unit.
     nearest = int(np.argmin(np.linalg.norm(v[lip] - anchor, axis=1)))
     return out / out[lip[nearest]]
+
+
+def lip_side_table(
+    fap: int,
+    v: FloatArray,
+    triangles: IntArray,
+    skin: IntArray,
+    contour: list[FloatArray],
+    anchor: FloatArray,
+    direction: tuple[float, float, float],
+    lips: tuple[IntArray, IntArray, IntArray],
+    which: tuple[str, str],
+) -> Any:
+    """The FaceDefMesh of a lip FAP between middle and corner (LIP_SIDE_FAPS):
+    a lip_field of lip_side_profile per sign (LIP_SIDE_CORNER), the
+    mouth's pocket on the other lip (``lips``: this lip, the other, the
+    pocket) following harmonically: held still, its triangles next to the
+    moving lip's inner contour folded over at 430 (10+) and 380 (55+)."""
+    lip, other, inside = lips
+    fields = []
+    for sign in (-1, 1):
+        share, power = LIP_SIDE_CORNER[(*which, sign)]
+
+        def profile(
+            x: FloatArray, centre: float, corner: float, share: float = share, power: float = power
+        ) -> FloatArray:
+            return lip_side_profile(x, centre, corner, share, power)
+
+        fields.append(
+            lip_field(
+                v, triangles, skin, contour, float(anchor[0]), lip, other, anchor, 0.0, profile,
+                inside,
+            )
+        )  # fmt: skip
+    axis = np.asarray(direction)[None, :]
+    keep = np.flatnonzero((fields[0] > 0.0) | (fields[1] > 0.0))
+    return shape_table(fap, (-1000.0, 0.0, 1000.0), [f[:, None] * axis for f in fields], keep)
 
 
 def bump(x: FloatArray, centre: float, end_a: float, end_b: float) -> FloatArray:
@@ -1474,15 +1580,17 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         (58, "8.8", up, "lower", "outer"),
     ):
         other = lips["lower" if lip == "upper" else "upper"]
+        points = [fp[name] for name in contour_points[(lip, contour)]]
+        if fap in LIP_SIDE_FAPS:
+            deformers.append(
+                lip_side_table(
+                    fap, v, skin_triangles, skin, points, fp[point], direction,
+                    (lips[lip], other, parts["mouth_inside"]), (lip, contour),
+                )
+            )  # fmt: skip
+            continue
         weight = lip_field(
-            v,
-            skin_triangles,
-            skin,
-            [fp[name] for name in contour_points[(lip, contour)]],
-            float(fp[point][0]),
-            lips[lip],
-            other,
-            fp[point],
+            v, skin_triangles, skin, points, float(fp[point][0]), lips[lip], other, fp[point]
         )
         per_unit = weight[:, None] * np.asarray(direction)[None, :]
         keep = np.flatnonzero(weight > 0.0)
@@ -1514,9 +1622,10 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         (59, "8.3", "mouthSmileLeft", "mouthFrownLeft"),
         (60, "8.4", "mouthSmileRight", "mouthFrownRight"),
     ):
-        deformers.append(
-            signed_table(fap, shape(smile), shape(frown), fp_index[point], up, mouth_parts)
+        lift = smile_curve(
+            shape(smile), v, float(fp["2.4"][0] if fap in (12, 59) else fp["2.5"][0])
         )
+        deformers.append(signed_table(fap, lift, shape(frown), fp_index[point], up, mouth_parts))
     # The artist's stretch also pulls the corner down (5 mm at 200 MW, as
     # far as F12 raises it in joy, whose profile sets both): Table 7's
     # stretch is horizontal, so the shape's vertical part is left out (the

@@ -1,0 +1,160 @@
+"""The lips seen from the front (issue 11): the lips between middle and
+corner (FAPs 8..11 inner, 55..58 outer) and the raised corners (12, 13, 59,
+60) on the default face.
+
+hm08 samples each lip contour with about five vertices from the middle to
+a corner, so the shape of a contour in a front view is a polyline, and
+what the eye reads as a curve or as a V is how its turning is shared out
+among those vertices. The tests pin that as the change of each contour
+vertex's turning angle (degrees, in the x-y plane) between the neutral and
+the posed face, at the value ``realizer fap-sheet`` shows (512): the
+lip_field tables of 10- and 57- turned one vertex by 53 and 34 degrees
+(a V and a triangle), and the artist's smile kept the lip line straight
+from the middle to the raised corner (lift linear in x).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from realizer.face.default import load_default_face
+from realizer.face.deform import deform
+from realizer.face.model import Face
+
+#: The four lip contours, corner to corner through their feature points.
+CONTOURS = {
+    "upper inner": ("2.4", "2.6", "2.2", "2.7", "2.5"),
+    "lower inner": ("2.4", "2.8", "2.3", "2.9", "2.5"),
+    "upper outer": ("8.3", "8.5", "8.1", "8.6", "8.4"),
+    "lower outer": ("8.3", "8.7", "8.2", "8.8", "8.4"),
+}
+#: FAP: the contour it moves.
+SIDE_FAPS = {
+    8: "upper inner",
+    9: "upper inner",
+    10: "lower inner",
+    11: "lower inner",
+    55: "upper outer",
+    56: "upper outer",
+    57: "lower outer",
+    58: "lower outer",
+}
+
+
+@pytest.fixture(scope="module")
+def face() -> Face:
+    return load_default_face()
+
+
+@pytest.fixture(scope="module")
+def contours(face: Face) -> dict[str, np.ndarray]:
+    """Each contour's vertices: the shortest mesh paths between its points."""
+    v = np.asarray(face.vertices, dtype=np.float64)
+    f = np.asarray(face.faces)
+    i = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
+    j = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+    w = np.linalg.norm(v[i] - v[j], axis=1)
+    graph = coo_matrix((np.r_[w, w], (np.r_[i, j], np.r_[j, i])), shape=(len(v), len(v))).tocsr()
+    out = {}
+    for name, points in CONTOURS.items():
+        ids = [face.feature_vertex(p) for p in points]
+        loop = [ids[0]]
+        for a, b in itertools.pairwise(ids):
+            _, pred = dijkstra(graph, indices=a, return_predecessors=True)
+            path = [b]
+            while path[-1] != a:
+                path.append(int(pred[path[-1]]))
+            loop += path[::-1][1:]
+        out[name] = np.asarray(loop)
+    return out
+
+
+def posed(face: Face, values: dict[int, float]) -> np.ndarray:
+    vector = np.zeros(68)
+    for fap, value in values.items():
+        vector[fap - 1] = value
+    return np.asarray(deform(face, vector), dtype=np.float64)
+
+
+def turning(points: np.ndarray) -> np.ndarray:
+    """The turning angle (degrees) at each inner vertex of a polyline, front view."""
+    d = np.diff(points[:, :2], axis=0)
+    angle = np.arctan2(d[:, 1], d[:, 0])
+    t = np.diff(angle)
+    result: np.ndarray = np.degrees((t + np.pi) % (2 * np.pi) - np.pi)
+    return result
+
+
+def added_turning(face: Face, loop: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    return turning(vertices[loop]) - turning(np.asarray(face.vertices, dtype=np.float64)[loop])
+
+
+#: The most a vertex of the FAP's own contour between the corners (within
+#: CORNER_SHARE of the corner's x) may turn at 512, degrees ...
+MAX_ADDED_TURN = 33.0
+CORNER_SHARE = 0.8
+#: ... for these displacements: towards the other lip on the outer contour
+#: (55+..58+) the lips press on each other and that still kinks (57 degrees).
+CURVED = [(f, s) for f in sorted(SIDE_FAPS) for s in (1.0, -1.0) if f < 55 or s < 0]
+
+
+@pytest.mark.parametrize(
+    ("fap", "sign"), [pytest.param(f, s, id=f"{f}{'+' if s > 0 else '-'}") for f, s in CURVED]
+)
+def test_a_lip_between_middle_and_corner_bends_as_a_curve(
+    face: Face, contours: dict[str, np.ndarray], fap: int, sign: float
+) -> None:
+    """At 512 (the feature point moves 9.2 mm) no vertex of the contour the
+    FAP moves, between its corners, turns by more than MAX_ADDED_TURN: the
+    turn is shared out along the lip. lip_field's tables turned one vertex
+    into a V's point (10-: 53 degrees, 8+: 48, 57-: 34); the corners
+    themselves (already a sharp turn at rest) are left out."""
+    loop = contours[SIDE_FAPS[fap]]
+    added = np.abs(added_turning(face, loop, posed(face, {fap: sign * 512})))
+    x = np.abs(np.asarray(face.vertices, dtype=np.float64)[loop[1:-1], 0])
+    between = x < CORNER_SHARE * abs(float(face.vertices[loop[0], 0]))
+    assert added[between].max() < MAX_ADDED_TURN, f"{added[between].max():.1f} degrees"
+
+
+@pytest.mark.parametrize(("fap", "corner"), [(12, "2.4"), (13, "2.5"), (59, "8.3"), (60, "8.4")])
+def test_a_raised_corner_curves_the_lip_line_up(
+    face: Face, contours: dict[str, np.ndarray], fap: int, corner: str
+) -> None:
+    """A smile's lip line stays level in the middle and curves up towards
+    the corner: along the upper lip's inner contour, from the midline to the
+    raised corner, the lift grows (never falls by more than 0.1 mm) and at
+    half the way it is under a third of the corner's (the artist's smile:
+    about half, a straight diagonal)."""
+    vertices = posed(face, {fap: 512})
+    loop = contours["upper inner"]
+    v0 = np.asarray(face.vertices, dtype=np.float64)
+    x_corner = face.feature_position(corner)[0]
+    side = np.sign(x_corner)
+    on_side = loop[(side * v0[loop, 0] >= 0) & (side * v0[loop, 0] <= abs(x_corner))]
+    order = on_side[np.argsort(side * v0[on_side, 0])]
+    lift = (vertices[order, 1] - v0[order, 1]) * 1000
+    assert np.all(np.diff(lift) > -0.1)
+    k = face.feature_vertex(corner)
+    corner_lift = (vertices[k, 1] - v0[k, 1]) * 1000
+    half = np.interp(0.5, side * v0[order, 0] / abs(x_corner), lift)
+    assert half < corner_lift / 3, f"{half:.2f} of {corner_lift:.2f} mm"
+
+
+@pytest.mark.parametrize("fap", [12, 13, 59, 60])
+def test_a_corner_raised_to_800_folds_nothing_and_keeps_rising(face: Face, fap: int) -> None:
+    """The artist's smile creased the cheek beside the corner from 700 (4 to
+    7 triangles folded over at 800); beyond 500-550 the table goes on with a
+    smoothed copy of its slope, the corner still rising one MNS per unit."""
+    from realizer.face.audit import PRACTICAL_RANGE, count_folds
+
+    assert PRACTICAL_RANGE[fap] == 800
+    vertices = posed(face, {fap: 800})
+    assert count_folds(face, face.vertices, vertices) == 0
+    corner = face.feature_vertex({12: "2.4", 13: "2.5", 59: "8.3", 60: "8.4"}[fap])
+    lift = vertices[corner, 1] - float(face.vertices[corner, 1])
+    assert lift == pytest.approx(800 * face.fapu.mns, rel=0.01)
