@@ -494,7 +494,7 @@ def schedule_block(
                     )
                 )
     # max(0, t): the solver's round-off may leave -1e-18 at the block start
-    values = [start + (t if t > 0.0 else 0.0) for t in values]
+    values = [start + t if t > 0.0 else start for t in values]
     behaviours = []
     #: each behaviour's (start, end), made once (the channel sweep and the
     #: plan's end read them)
@@ -512,19 +512,25 @@ def schedule_block(
         else:
             own = [values[indices[(behaviour_id, sync)]] for sync in syncs]
         spans[behaviour_id] = (min(own), max(own))
-        behaviours.append(ScheduledBehaviour(behaviour, dict(zip(syncs, own, strict=True))))
+        # the lengths agree (one time per sync point): no strict check
+        behaviours.append(ScheduledBehaviour(behaviour, dict(zip(syncs, own, strict=False))))
     busy = _resolve_channels(block.id, behaviours, registry, notes, occupied, spans)
     if busy:
         skip |= busy
-        behaviours = [b for b in behaviours if b.id not in busy]
-    end = max((spans[b.id][1] for b in behaviours), default=start)
+        behaviours = [b for b in behaviours if b.behaviour.id not in busy]
+        for behaviour_id in busy:
+            del spans[behaviour_id]
+    end = max([span[1] for span in spans.values()], default=start)
+    gone = dropped | skip
+    if len(models) < len(block.behaviours):  # behaviours planned by no engine
+        gone = gone | (set(b.id for b in block.behaviours) - set(models))
     return TimedPlan(
         block=block,
         start=start,
         end=end,
         behaviours=tuple(behaviours),
         warnings=tuple(notes),
-        dropped=frozenset(dropped | skip | (set(b.id for b in block.behaviours) - set(models))),
+        dropped=frozenset(gone),
         models=models,
         unrealized=frozenset(unrealized),
     )
@@ -559,14 +565,25 @@ def _resolve_channels(
     block of 10,000 behaviours has thousands of nods).
     """
     by_channel: dict[str, list[tuple[str, ScheduledBehaviour, tuple[float, float]]]] = {}
+    channels_of = registry.channels
     for other_block, scheduled in occupied:
         bounds = (scheduled.start, scheduled.end)
-        for channel in sorted(registry.channels(scheduled.behaviour)):
+        for channel in sorted(channels_of(scheduled.behaviour)):
             by_channel.setdefault(channel, []).append((f"{other_block}:", scheduled, bounds))
     for scheduled in behaviours:
-        bounds = spans[scheduled.id] if spans is not None else (scheduled.start, scheduled.end)
-        for channel in sorted(registry.channels(scheduled.behaviour)):
-            by_channel.setdefault(channel, []).append(("", scheduled, bounds))
+        names = channels_of(scheduled.behaviour)
+        if not names:
+            continue
+        bounds = (
+            spans[scheduled.behaviour.id] if spans is not None else (scheduled.start, scheduled.end)
+        )
+        entry = ("", scheduled, bounds)
+        for channel in sorted(names) if len(names) > 1 else names:
+            listed = by_channel.get(channel)
+            if listed is None:
+                by_channel[channel] = [entry]
+            else:
+                listed.append(entry)
     removed: set[str] = set()
     for channel, found in by_channel.items():
         if len(found) < 2:

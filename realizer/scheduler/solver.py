@@ -252,8 +252,9 @@ class Problem:
         keys = [(behaviour_id, sync) for sync in syncs]
         fresh = known.keys().isdisjoint(keys)
         if fresh:
-            known.update(zip(keys, range(first, first + size), strict=True))
-            fresh = len(known) == first + size  # else a key repeats within the behaviour
+            last = first + size
+            known.update(zip(keys, range(first, last), strict=False))
+            fresh = len(known) == last  # else a key repeats within the behaviour
             if not fresh:  # undo: all of them were new
                 for key in keys:
                     known.pop(key, None)
@@ -262,8 +263,8 @@ class Problem:
             self._first[behaviour_id] = first
             self._chains.append((behaviour_id, syncs, phases, source, first))
             self._starts.append(first)
-            self._phase_a.extend(range(first, first + size - 1))
-            self._phase_b.extend(range(first + 1, first + size))
+            self._phase_a.extend(range(first, last - 1))
+            self._phase_b.extend(range(first + 1, last))
         else:  # known keys keep their place
             self._first.pop(behaviour_id, None)
             indices = [self._index(key) for key in keys]
