@@ -25,7 +25,9 @@ from websockets.exceptions import ConnectionClosed
 from realizer.service.client import ConnectionLost
 from realizer.service.cluster.leases import LeaseTable
 from realizer.service.cluster.protocol import (
+    CLUSTER_VERSION,
     ClusterMessageError,
+    FrameTick,
     LeaseValue,
     OwnerReply,
     OwnerRequest,
@@ -44,6 +46,7 @@ from realizer.service.stage import BlockEvent, WireFeedback
 from tests.service.conftest import UNIT
 
 BML_NS = "http://www.bml-initiative.org/bml/bml-1.0"
+V = CLUSTER_VERSION
 
 
 def smile(block_id: str, end: float, character: str) -> str:
@@ -60,16 +63,16 @@ def smile(block_id: str, end: float, character: str) -> str:
 def test_character_ids_with_dots_map_to_one_subject_token_and_back() -> None:
     assert token("anna.v2") == "anna=v2"
     assert untoken(token("anna.v2")) == "anna.v2"
-    assert request_subject("anna.v2") == "realizer.v1.req.anna=v2"
+    assert request_subject("anna.v2") == f"realizer.v{CLUSTER_VERSION}.req.anna=v2"
     subject = frame_subject("a.b", ViewOptions(vertices="int16"))
-    assert subject.startswith("realizer.v1.frame.a=b.true_int16")
+    assert subject.startswith(f"realizer.v{CLUSTER_VERSION}.frame.a=b.true_int16")
     assert subject.count(".") == 4
 
 
 def test_a_request_round_trips_and_another_version_is_refused() -> None:
     request = OwnerRequest("bml", "alice", "gw/1", bml="<bml/>")
     assert OwnerRequest.unpack(request.pack()) == request
-    other = msgpack.packb({"v": 2, "op": "bml", "character": "alice", "bml": "<bml/>"})
+    other = msgpack.packb({"v": 1, "op": "bml", "character": "alice", "bml": "<bml/>"})
     with pytest.raises(ClusterMessageError, match="version"):
         OwnerRequest.unpack(other)
 
@@ -79,7 +82,7 @@ def test_a_lease_value_carries_its_owners_clock_and_refuses_a_bad_one() -> None:
     assert LeaseValue.unpack(value.pack()) == value
     assert LeaseValue.unpack(LeaseValue("w1").pack()) == LeaseValue("w1")  # without: 0.0
     for clock in ("1", True, float("inf"), float("nan")):
-        bad = json.dumps({"v": 1, "owner": "w1", "host": "h", "clock": clock}).encode()
+        bad = json.dumps({"v": V, "owner": "w1", "host": "h", "clock": clock}).encode()
         with pytest.raises(ClusterMessageError, match="clock"):
             LeaseValue.unpack(bad)
 
@@ -88,17 +91,17 @@ def test_a_reply_carries_its_mesh_bytes() -> None:
     reply = OwnerReply("ok", "w1", mesh=b"\x81\xa4type")
     assert OwnerReply.unpack(reply.pack()) == reply
     with pytest.raises(ClusterMessageError, match="status"):
-        OwnerReply.unpack(msgpack.packb({"v": 1, "status": "maybe"}))
+        OwnerReply.unpack(msgpack.packb({"v": V, "status": "maybe"}))
 
 
 def test_requests_over_their_limits_or_for_bad_characters_are_refused() -> None:
     with pytest.raises(ClusterMessageError, match="over the limit"):
         OwnerRequest.unpack(b"\x00" * 300_000)
-    bad = msgpack.packb({"v": 1, "op": "bml", "character": "a b", "to": "", "bml": "x"})
+    bad = msgpack.packb({"v": V, "op": "bml", "character": "a b", "to": "", "bml": "x"})
     with pytest.raises(ClusterMessageError, match="character"):
         OwnerRequest.unpack(bad)
     with pytest.raises(ClusterMessageError, match="op"):
-        OwnerRequest.unpack(msgpack.packb({"v": 1, "op": "drop", "character": "a"}))
+        OwnerRequest.unpack(msgpack.packb({"v": V, "op": "drop", "character": "a"}))
 
 
 def test_feedback_and_block_events_round_trip_with_their_addressee() -> None:
@@ -111,12 +114,14 @@ def test_feedback_and_block_events_round_trip_with_their_addressee() -> None:
 
 def test_a_want_message_is_bounded_and_validated() -> None:
     wants = {"alice": {ViewOptions(), ViewOptions(vertices="int16")}}
-    gateway, read = unpack_want(pack_want("gw", wants))
+    every = {"alice": {ViewOptions(vertices="int16")}}
+    gateway, read, whole = unpack_want(pack_want("gw", wants, every))
     assert gateway == "gw" and read == {"alice": frozenset(wants["alice"])}
-    bad = msgpack.packb({"v": 1, "gateway": "gw", "characters": {"a": [{"vertices": "jpeg"}]}})
+    assert whole == {"alice": frozenset(every["alice"])}
+    bad = msgpack.packb({"v": V, "gateway": "gw", "characters": {"a": [{"vertices": "jpeg"}]}})
     with pytest.raises(ClusterMessageError, match="format"):
         unpack_want(bad)
-    many = msgpack.packb({"v": 1, "gateway": "gw", "characters": {"a": [{}] * 17}})
+    many = msgpack.packb({"v": V, "gateway": "gw", "characters": {"a": [{}] * 17}})
     with pytest.raises(ClusterMessageError, match="at most 16"):
         unpack_want(many)
 
@@ -595,6 +600,50 @@ def test_viewers_through_a_gateway_make_a_bounded_number_of_characters(cluster: 
     assert accepted  # a submitter still gets a character
 
 
+class FakeViewer:
+    """What a gateway's fan-out offers one viewer (a stand-in for
+    ``realizer.service.server.Viewer``), with its mailbox never full."""
+
+    def __init__(self, options: ViewOptions | None = None, *, same: bool = False) -> None:
+        self.options = options or ViewOptions()
+        self.same = same
+        self.version = -1
+        self.got: list[bytes] = []
+
+    def offer(self, frame: bytes, write_limit: int = 0, wire: bytes | None = None) -> None:
+        assert wire is None or wire.endswith(frame)  # the WebSocket frame of these bytes
+        self.got.append(frame)
+
+    def offer_same(self, same: bytes, write_limit: int = 0, wire: bytes | None = None) -> None:
+        self.offer(same, write_limit, wire)
+
+
+class FrameMessage:
+    def __init__(self, subject: str, data: bytes) -> None:
+        self.subject, self.data = subject, data
+
+
+def offline_gateway(viewers: dict[str, list[FakeViewer]]) -> Any:
+    """A gateway (no NATS connection) whose characters have these viewers."""
+    pytest.importorskip("nats", reason="the cluster extra (nats-py) is not installed")
+    from realizer.service.cluster.bus import ClusterConfig
+    from realizer.service.cluster.gateway import ClusterGateway
+    from realizer.service.server import ServiceConfig
+
+    gateway = ClusterGateway(ServiceConfig(), ClusterConfig("nats://127.0.0.1:1"))
+    for character, found in viewers.items():
+        groups: dict[str, set[Any]] = {}
+        for viewer in found:
+            groups.setdefault(format_key(viewer.options), set()).add(viewer)
+        gateway.by_format[character] = groups
+    return gateway
+
+
+async def publish(gateway: Any, character: str, tick: FrameTick, options: Any = None) -> None:
+    subject = frame_subject(character, options or ViewOptions())
+    await gateway._on_frame(FrameMessage(subject, tick.pack()))
+
+
 def test_a_gateway_behind_on_frames_sends_each_viewer_the_newest_not_the_backlog() -> None:
     """Regression: a gateway offered every frame to its viewers in the order
     NATS delivered them, so one that fell behind (CPU-starved: 50 characters
@@ -607,43 +656,271 @@ def test_a_gateway_behind_on_frames_sends_each_viewer_the_newest_not_the_backlog
     in one write)."""
     import asyncio
 
-    pytest.importorskip("nats", reason="the cluster extra (nats-py) is not installed")
-    from realizer.service.cluster.bus import ClusterConfig
-    from realizer.service.cluster.gateway import ClusterGateway
-    from realizer.service.server import ServiceConfig
+    viewer, other = FakeViewer(), FakeViewer()
+    gateway = offline_gateway({"anna": [viewer], "bob": [other]})
 
-    class Received:
-        def __init__(self) -> None:
-            self.frames: list[bytes] = []
+    def whole(n: int, name: bytes) -> FrameTick:
+        return FrameTick(n, n / 60, n, name)
 
-        def offer(self, frame: bytes, write_limit: int = 0, wire: bytes | None = None) -> None:
-            assert wire is None or wire.endswith(frame)  # the WebSocket frame of these bytes
-            self.frames.append(frame)
-
-    class Message:
-        def __init__(self, subject: str, data: bytes) -> None:
-            self.subject, self.data = subject, data
-
-    async def scenario() -> tuple[list[bytes], list[bytes], int]:
-        gateway = ClusterGateway(ServiceConfig(), ClusterConfig("nats://127.0.0.1:1"))
-        options = ViewOptions()
-        viewer, other = Received(), Received()
-        gateway.by_format = {
-            "anna": {format_key(options): {viewer}},  # type: ignore[set-item]
-            "bob": {format_key(options): {other}},  # type: ignore[set-item]
-        }
+    async def scenario() -> None:
         for n in range(5):  # a backlog: read in one go, before the loop runs again
-            await gateway._on_frame(Message(frame_subject("anna", options), b"a%d" % n))  # type: ignore[arg-type]
-        await gateway._on_frame(Message(frame_subject("bob", options), b"b0"))  # type: ignore[arg-type]
+            await publish(gateway, "anna", whole(n, b"a%d" % n))
+        await publish(gateway, "bob", whole(0, b"b0"))
         await asyncio.sleep(0)
         for n in range(5, 8):  # one at a time
-            await gateway._on_frame(Message(frame_subject("anna", options), b"a%d" % n))  # type: ignore[arg-type]
+            await publish(gateway, "anna", whole(n, b"a%d" % n))
             await asyncio.sleep(0)
         for n in range(8, 10):  # two at once: a late worker's two ticks
-            await gateway._on_frame(Message(frame_subject("anna", options), b"a%d" % n))  # type: ignore[arg-type]
+            await publish(gateway, "anna", whole(n, b"a%d" % n))
         await asyncio.sleep(0)
-        return viewer.frames, other.frames, gateway.frames_superseded
 
-    frames, others, superseded = asyncio.run(scenario())
-    assert frames == [b"a3", b"a4", b"a5", b"a6", b"a7", b"a8", b"a9"]
-    assert others == [b"b0"] and superseded == 3
+    asyncio.run(scenario())
+    assert viewer.got == [b"a3", b"a4", b"a5", b"a6", b"a7", b"a8", b"a9"]
+    assert other.got == [b"b0"] and gateway.frames_superseded == 3
+
+
+def test_a_gateway_sends_same_as_serve_does_and_never_a_stale_picture() -> None:
+    """Frame ticks through a gateway: a viewer that asked for ``same``
+    messages gets one on each tick showing what its last frame showed, a
+    viewer that did not gets a whole frame every tick (the owner's whole
+    frame, or on a ``same`` tick the last whole frame moved to the tick);
+    when a whole frame was lost on the way (NATS is at most once), the
+    ``same`` ticks of its content reach nobody who lacks it (no stale
+    picture) until the next whole frame brings the content again."""
+    import asyncio
+
+    from realizer.service import codec
+
+    pytest.importorskip("nats", reason="the cluster extra (nats-py) is not installed")
+    options = ViewOptions()
+    # The frames of a real encoding: the viewer's own frame message.
+    rest, smile_content = 11, 22
+
+    def frame(n: int, content: int) -> bytes:
+        fap = {"ids": bytes([content % 68 + 1]), "values": b"\0\0\x80?"}
+        return codec.pack(codec.frame_message("anna", n, n / 60, options, fap=fap))  # type: ignore[arg-type]
+
+    same_viewer, every_viewer = FakeViewer(same=True), FakeViewer(same=False)
+    gateway = offline_gateway({"anna": [same_viewer, every_viewer]})
+
+    async def tick(n: int, content: int, whole: bool) -> None:
+        data = frame(n, content) if whole else None
+        await publish(gateway, "anna", FrameTick(n, n / 60, content, data))
+        await asyncio.sleep(0)
+
+    async def scenario() -> None:
+        await tick(1, rest, True)
+        await tick(2, rest, False)
+        await tick(3, rest, False)
+        # a late joiner on a same tick gets the last whole frame, moved on
+        gateway.by_format["anna"][format_key(options)].add(joiner)
+        await tick(4, rest, False)
+        await tick(5, smile_content, True)
+        await tick(6, smile_content, False)
+        # lost on the way: the whole frame of content 33 (tick 7)
+        await tick(8, 33, False)
+        await tick(9, 33, False)
+        await tick(10, 33, True)  # the next whole frame (a key frame)
+        await tick(11, 33, False)
+
+    joiner = FakeViewer(same=True)
+    asyncio.run(scenario())
+    same = codec.same_message
+    assert same_viewer.got == [
+        frame(1, rest), same(2), same(3), same(4), frame(5, smile_content), same(6),
+        frame(10, 33), same(11),
+    ]  # fmt: skip
+    assert every_viewer.got == [
+        frame(1, rest), frame(2, rest), frame(3, rest), frame(4, rest),
+        frame(5, smile_content), frame(6, smile_content), frame(10, 33), frame(11, 33),
+    ]  # fmt: skip
+    assert joiner.got == [frame(4, rest), frame(5, smile_content), same(6), frame(10, 33), same(11)]
+    assert gateway.frames_unknown == 6  # ticks 8 and 9, for three viewers
+
+
+def test_a_whole_frame_moved_to_another_tick_is_what_its_owner_encodes_there() -> None:
+    """The gateway's restamped frame for a late joiner is byte for byte the
+    frame the owner's encoder makes for that tick (FAPs, int16 deltas,
+    float32 vertices), so such a viewer cannot tell it from serve's."""
+    from realizer.face.frame import FapFrame
+    from realizer.service.assets import face_assets, load_face
+    from realizer.service.cluster.protocol import restamp
+    from realizer.service.stage import FrameEncoder
+
+    face = load_face(None)
+    assets = face_assets(face)
+    encoder = FrameEncoder("anna", face, assets.deform, 60.0, assets.colours)
+    frame = FapFrame.from_mapping({12: 300.0, 53: 120.0})
+    wanted = [ViewOptions(), ViewOptions(vertices="int16"), ViewOptions(vertices="float32")]
+    early = encoder.encode(40, 40 / 60, frame, wanted)
+    late = encoder.encode(4321, 4321 / 60, frame, wanted)
+    for options in wanted:
+        assert restamp(early[options], 4321, 4321 / 60) == late[options], options
+
+
+def test_frame_ticks_round_trip_and_bad_ones_are_refused() -> None:
+    tick = FrameTick(7, 0.125, 2**64 - 1, b"\x81\xa4type")
+    assert FrameTick.unpack(tick.pack()) == tick
+    assert FrameTick.unpack(FrameTick(8, 0.25, 5).pack()).frame is None
+    for bad in ({"n": -1}, {"t": float("nan")}, {"k": -1}, {"frame": "text"}, {"n": True}):
+        message = {"v": V, "n": 1, "t": 0.5, "k": 3, **bad}
+        with pytest.raises(ClusterMessageError):
+            FrameTick.unpack(msgpack.packb(message, use_bin_type=True))
+    with pytest.raises(ClusterMessageError, match="over the limit"):
+        FrameTick.unpack(b"\x00" * (17 * 1024 * 1024))
+
+
+# -- `same` through the cluster, against realizer serve -----------------------------------
+
+FORMATS = {"fap": "none", "int16": "int16", "float32": "float32"}
+
+
+def wire_size(payload: bytes) -> int:
+    """Bytes of a server's WebSocket frame of ``payload`` (header included)."""
+    return len(payload) + (2 if len(payload) < 126 else 4 if len(payload) < 65536 else 10)
+
+
+async def record(url: str, seconds: float, *, act: Any = None) -> list[bytes]:
+    """Every message a viewer at ``url`` gets in ``seconds`` after its mesh;
+    ``act`` (a coroutine function) runs once the mesh has come."""
+    import asyncio
+
+    from websockets.asyncio.client import connect
+
+    got: list[bytes] = []
+    async with connect(url, max_size=None, compression=None) as viewer:
+        mesh = await asyncio.wait_for(viewer.recv(), 30 * UNIT)
+        assert msgpack.unpackb(mesh)["type"] == "mesh"
+        if act is not None:
+            await act()
+        loop = asyncio.get_running_loop()
+        end = loop.time() + seconds
+        while (left := end - loop.time()) > 0:
+            try:
+                data = await asyncio.wait_for(viewer.recv(), left)
+            except TimeoutError:
+                break
+            assert isinstance(data, bytes)
+            got.append(data)
+    return got
+
+
+def view_url(port: int, character: str, vertices: str, same: bool) -> str:
+    same_text = "true" if same else "false"
+    return (
+        f"ws://127.0.0.1:{port}/view?character={character}&fap=true"
+        f"&vertices={vertices}&same={same_text}&audio=none"
+    )
+
+
+@pytest.mark.slow
+def test_an_idle_viewer_through_a_gateway_gets_what_serve_sends_it(cluster: Any) -> None:
+    """A viewer of a resting face gets, through a gateway, exactly what
+    ``realizer serve`` sends it, per format: the mesh, one whole frame (its
+    bytes serve's but for ``n`` and ``t``), then a ``same`` of 19-23 bytes
+    a tick (serve's own bytes for that ``n``), not a whole frame a tick
+    (about 70 bytes for FAPs, 73 kB for float32 vertices, before)."""
+    import asyncio
+
+    from realizer.service import codec
+    from realizer.service.cluster.protocol import restamp
+    from tests.service.process import serve_process
+
+    _, (gateway,) = cluster.start(workers=1, gateways=1)
+    with serve_process("--no-idle") as serve:
+
+        async def both() -> list[tuple[str, list[bytes], list[bytes]]]:
+            found = []
+            for name, vertices in FORMATS.items():
+                at_serve, at_gateway = await asyncio.gather(
+                    record(view_url(serve.port, f"rest-{name}", vertices, True), 1.5 * UNIT),
+                    record(view_url(gateway.port, f"rest-{name}", vertices, True), 1.5 * UNIT),
+                )
+                found.append((name, at_serve, at_gateway))
+            return found
+
+        results = asyncio.run(both())
+    for name, at_serve, at_gateway in results:
+        kinds = {
+            side: [msgpack.unpackb(m)["type"] for m in got]
+            for side, got in (("serve", at_serve), ("gateway", at_gateway))
+        }
+        assert len(at_gateway) >= 30, (name, kinds["gateway"][:5])
+        for side, got in (("serve", at_serve), ("gateway", at_gateway)):
+            assert kinds[side][0] == "frame" and set(kinds[side][1:]) == {"same"}, (name, side)
+            for data in got[1:]:  # serve's own `same` for that n, nothing more
+                assert data == codec.same_message(msgpack.unpackb(data)["n"])
+                assert wire_size(data) <= 23
+        first = msgpack.unpackb(at_serve[0])
+        assert restamp(at_gateway[0], first["n"], first["t"]) == at_serve[0], name
+        sizes = [wire_size(m) for m in at_gateway[1:]]
+        print(f"{name}: a tick through the gateway {sum(sizes) / len(sizes):.1f} bytes")
+
+
+@pytest.mark.slow
+def test_a_moving_face_through_a_gateway_follows_serves_same_rule(cluster: Any) -> None:
+    """While a block moves the face, a viewer that asked for ``same`` gets a
+    whole frame exactly on the ticks whose content differs from the last
+    frame it got, and a ``same`` on the others (``realizer serve``'s rule),
+    judged against a viewer of the same gateway that asked for no ``same``
+    and so gets every tick whole; a viewer joining mid-stream gets a whole
+    frame first."""
+    import asyncio
+
+    _, (gateway,) = cluster.start(workers=1, gateways=1)
+    character = "mover"
+    bml = (
+        f'<bml xmlns="{BML_NS}" id="m1" characterId="{character}">'
+        '<faceLexeme id="s" lexeme="RAISE_MOUTH_CORNERS" amount="1" start="0.2" end="0.7"/>'
+        "</bml>"
+    )
+
+    async def scenario() -> tuple[list[bytes], list[bytes], list[bytes]]:
+        from websockets.asyncio.client import connect
+
+        async def submit() -> None:
+            url = f"ws://127.0.0.1:{gateway.port}/bml?format=json"
+            async with connect(url) as submitter:
+                await submitter.recv()
+                await submitter.send(json.dumps({"type": "bml", "bml": bml}))
+                while '"done"' not in str(await asyncio.wait_for(submitter.recv(), 20 * UNIT)):
+                    pass
+
+        async def late() -> list[bytes]:
+            await asyncio.sleep(0.45)  # joins while the face moves (or holds)
+            return await record(view_url(gateway.port, character, "int16", True), 0.8 * UNIT)
+
+        # Both watchers first (the character is made for them), then the block.
+        watch = [
+            asyncio.ensure_future(
+                record(view_url(gateway.port, character, "int16", same), 2.5 * UNIT)
+            )
+            for same in (True, False)
+        ]
+        await asyncio.sleep(1.0 * UNIT)
+        joined, _ = await asyncio.gather(late(), submit())
+        with_same, whole = await asyncio.gather(*watch)
+        return with_same, whole, joined
+
+    with_same, whole, joined = asyncio.run(scenario())
+    content = {}  # n -> what the every-tick viewer's frame at n shows
+    for data in whole:
+        message = msgpack.unpackb(data)
+        assert message["type"] == "frame"
+        content[message["n"]] = {k: v for k, v in message.items() if k not in ("n", "t")}
+    last = None
+    wholes = sames = 0
+    for data in with_same:
+        message = msgpack.unpackb(data)
+        shown = content.get(message["n"])
+        if message["type"] == "frame":
+            here = {k: v for k, v in message.items() if k not in ("n", "t")}
+            assert shown is None or here == shown
+            assert here != last, f"a whole frame at {message['n']} showing the last one's content"
+            last, wholes = here, wholes + 1
+        else:
+            assert message["type"] == "same"
+            assert shown is None or shown == last, f"a same at {message['n']}: the face moved"
+            sames += 1
+    assert wholes >= 3 and sames >= 30, (wholes, sames)  # it moved, and rested
+    assert msgpack.unpackb(joined[0])["type"] == "frame"

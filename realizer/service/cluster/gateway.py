@@ -10,18 +10,25 @@ character's owner over NATS:
 * a submitter's BML goes to the character it names (the same precedence
   as ``realizer serve``: the envelope's ``character``, the block's
   ``characterId``, the connection's character) as a request on
-  ``realizer.v1.req.<c>``; where no worker answers there, on the claim
+  ``realizer.v2.req.<c>``; where no worker answers there, on the claim
   subject, where one worker takes the character; while a character is
   between owners (a worker died or is leaving) the gateway asks again until
   ``owner_wait`` has passed, then refuses the block with a warning;
-* feedback comes from ``realizer.v1.fb.*`` and goes to the submitters that
+* feedback comes from ``realizer.v2.fb.*`` and goes to the submitters that
   follow the character, and to the one that sent the request;
-* a viewer's frames come from ``realizer.v1.frame.<c>.*``, subscribed while
-  the character has viewers here, and are offered to each viewer's
-  one-frame mailbox once the frames at hand are read (the newest of each
-  character and format: a backlog is not sent in turn), never decoded or
-  retimed; the gateway tells the workers which formats its viewers want
-  (``realizer.v1.want``);
+* a viewer's frames come from ``realizer.v2.frame.<c>.*``, subscribed while
+  the character has viewers here, one frame tick per tick and format:
+  a whole frame (offered to each viewer's one-frame mailbox as the owner
+  encoded it, never decoded or retimed) or a ``same``; each viewer gets
+  what ``realizer serve`` would send it: a ``same`` when it asked for
+  them and already has what the tick shows, else the whole frame (for one
+  that just joined on a ``same`` tick, the last whole frame of that
+  content moved to this tick's ``n`` and ``t``), and nothing on a tick
+  whose content this gateway never received whole (a lost NATS message)
+  until the next whole frame (at most a second later). Ticks are fanned
+  out once the ones at hand are read (the newest two of each character
+  and format: a backlog is not sent in turn). The gateway tells the
+  workers which formats its viewers want (``realizer.v2.want``);
 * when a character's owner changes (a lease watched in the bucket), its
   viewers get the mesh message again: a new subscription, whose frames
   carry the new owner's clock.
@@ -33,15 +40,17 @@ import asyncio
 import contextlib
 import logging
 import time
+from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any, cast
 
-import msgpack
 import nats.errors
 from lxml import etree
 from nats.aio.client import Client
 from nats.aio.msg import Msg
 from nats.aio.subscription import Subscription
 
+from realizer.service import codec
 from realizer.service.cluster.bus import (
     HOST,
     ClusterConfig,
@@ -57,12 +66,14 @@ from realizer.service.cluster.protocol import (
     SUBJECT_CLAIM,
     SUBJECT_WANT,
     ClusterMessageError,
+    FrameTick,
     OwnerReply,
     OwnerRequest,
     format_key,
     frame_wildcard,
     pack_want,
     request_subject,
+    restamp,
     unpack_feedback,
     untoken,
 )
@@ -91,15 +102,28 @@ logger = logging.getLogger("realizer.cluster")
 
 #: The part of a BML document read to find its ``characterId`` (bytes).
 ROOT_SCAN_BYTES = 4096
-#: Frames of one character and format a fan-out sends at most: the newest
-#: of those read since the last one, and the one before it (a worker whose
-#: clock ran two ticks back to back publishes them in one write: both go
-#: out); older ones are superseded (the gateway is behind).
+#: Frame ticks of one character and format a fan-out sends at most: the
+#: newest of those read since the last one, and the one before it (a worker
+#: whose clock ran two ticks back to back publishes them in one write: both
+#: go out); older ones are superseded (the gateway is behind).
 FRAMES_KEPT = 2
+#: Characters whose last whole frames a gateway keeps (per format) beyond
+#: those its viewers watch.
+STREAMS_KEPT = 64
 #: Messages of one submitter forwarded at once (to different characters;
 #: each character's in order); the connection's next message is read when
 #: one of them is done.
 IN_FLIGHT = 16
+
+
+@dataclass(slots=True)
+class LastWhole:
+    """A character's last whole frame in one format at this gateway, and
+    its content id: what a viewer that needs a whole frame on a ``same``
+    tick of that content is sent (moved to the tick)."""
+
+    content: int
+    frame: bytes
 
 
 class NoOwner(PeerError):
@@ -160,10 +184,14 @@ class ClusterGateway(RealizerService):
         self.frames_received = 0
         #: frames superseded at the gateway before its fan-out ran (it was behind)
         self.frames_superseded = 0
-        #: per (character, format key) the newest frames not yet fanned out
-        #: (at most FRAMES_KEPT, oldest first), each with its due time on
+        #: per (character, format key) the newest frame ticks not yet fanned
+        #: out (at most FRAMES_KEPT, oldest first), each with its due time on
         #: this host's loop clock (0.0: not known)
-        self._newest: dict[tuple[str, str], list[tuple[bytes, float]]] = {}
+        self._newest: dict[tuple[str, str], list[tuple[FrameTick, float]]] = {}
+        #: per (character, format key) the last whole frame received
+        self._whole: dict[tuple[str, str], LastWhole] = {}
+        self.frames_restamped = 0  # whole frames made here for a viewer on a same tick
+        self.frames_unknown = 0  # same ticks of a content never received whole here
         #: per submitter, the last forwarding task of each character
         self._lanes: dict[Submitter, dict[str, asyncio.Task[None]]] = {}
         #: forward: a bml message's arrival -> the owner's reply (the block
@@ -207,6 +235,8 @@ class ClusterGateway(RealizerService):
             workers=sorted(self.table.owners()),
             framesReceived=self.frames_received,
             framesSuperseded=self.frames_superseded,
+            framesRestamped=self.frames_restamped,
+            framesUnknown=self.frames_unknown,
             nats=bool(self.nats is not None and self.nats.is_connected),
             timings=summaries(self.timings),
         )
@@ -450,6 +480,9 @@ class ClusterGateway(RealizerService):
         else:
             self.by_format.pop(character, None)
             self.viewers.pop(character, None)
+            unwatched = {c for c, _ in self._whole if c not in self.by_format}
+            if len(unwatched) > STREAMS_KEPT:  # keep it bounded
+                self._whole = {k: v for k, v in self._whole.items() if k[0] in self.by_format}
         self._spawn(self._subscribe_frames(character))
         self._want_changed.set()
 
@@ -467,36 +500,46 @@ class ClusterGateway(RealizerService):
                 await subscription.unsubscribe()
 
     async def _on_frame(self, msg: Msg) -> None:
-        """Keep the newest frames of each character and format; the fan-out
-        to the viewers runs once the frames at hand are read.
+        """Keep the newest frame ticks of each character and format (and the
+        last whole frame); the fan-out to the viewers runs once the ticks at
+        hand are read.
 
-        A frame supersedes the last but one before it, so a gateway that
-        falls behind (frames piling up in its NATS connection while it
-        waited for the CPU) sends each viewer the two newest frames of the
+        A tick supersedes the last but one before it, so a gateway that
+        falls behind (ticks piling up in its NATS connection while it
+        waited for the CPU) sends each viewer the two newest ticks of the
         backlog, not every old one in turn: it drops frames instead of
         adding latency, as ``realizer serve``'s clock skips ticks when it
-        is behind by whole frames. Two frames read at once are not a
+        is behind by whole frames. Two ticks read at once are not a
         backlog: a worker's clock that is late runs its next tick at once,
-        and both ticks' frames leave in one write, where ``realizer serve``
-        would have sent both (keeping only the newest, the cluster dropped
-        552 of 78090 frames at 50 x 200 where ``realizer serve`` dropped
-        20)."""
-        # realizer.v1.frame.<token>.<format>
+        and both ticks leave in one write, where ``realizer serve`` would
+        have sent both (keeping only the newest, the cluster dropped 552 of
+        78090 frames at 50 x 200 where ``realizer serve`` dropped 20). A
+        superseded whole frame is not lost to the viewers: the last whole
+        frame is kept apart, and a viewer that lacks its content gets it
+        on the next tick."""
+        # realizer.v2.frame.<token>.<format>
         parts = msg.subject.split(".")
         if len(parts) != 5:
             return
         key = (untoken(parts[3]), parts[4])
         if key[1] not in self.by_format.get(key[0], {}):
             return
+        try:
+            tick = FrameTick.unpack(msg.data)
+        except ClusterMessageError as exc:
+            logger.warning("ignored a frame message: %s", exc)
+            return
         self.frames_received += 1
-        frame = (msg.data, self._due(key[0], msg.data))
-        if frame[1]:
-            self.timings["frame_received"].add(asyncio.get_running_loop().time() - frame[1])
+        if tick.frame is not None:
+            self._whole[key] = LastWhole(tick.content, tick.frame)
+        due = self._due(key[0], tick.number)
+        if due:
+            self.timings["frame_received"].add(asyncio.get_running_loop().time() - due)
         kept = self._newest.get(key)
         if kept is None:
-            self._newest[key] = [frame]
+            self._newest[key] = [(tick, due)]
         else:
-            kept.append(frame)
+            kept.append((tick, due))
             if len(kept) > FRAMES_KEPT:
                 del kept[0]
                 self.frames_superseded += 1
@@ -504,20 +547,12 @@ class ClusterGateway(RealizerService):
             self._fan_out_due = True
             asyncio.get_running_loop().call_soon(self._fan_out)
 
-    def _due(self, character: str, data: bytes) -> float:
-        """A frame's due time on this host's loop clock, from its owner's
-        frame 0 (the lease) and its number; 0.0 when the owner runs on
-        another host (its monotonic clock is not this one's) or the frame
-        cannot be read. Only the frame's own bytes are read, never trusted
-        for anything but this figure."""
+    def _due(self, character: str, number: int) -> float:
+        """Frame ``number``'s due time on this host's loop clock, from its
+        owner's frame 0 (the lease); 0.0 when the owner runs on another host
+        (its monotonic clock is not this one's)."""
         lease = self.table.leases.get(character)
         if lease is None or lease.value.host != HOST or not lease.value.clock:
-            return 0.0
-        try:
-            number = msgpack.unpackb(data).get("n")
-        except Exception:  # not ours to judge: the viewers get it as it came
-            return 0.0
-        if not isinstance(number, int) or isinstance(number, bool):
             return 0.0
         return lease.value.clock + number / self.config.fps
 
@@ -525,24 +560,59 @@ class ClusterGateway(RealizerService):
         self._fan_out_due = False
         newest, self._newest = self._newest, {}
         written = self.timings["frame_written"]
-        for (character, key), frames in newest.items():
+        for (character, key), ticks in newest.items():
             viewers = self.by_format.get(character, {}).get(key, ())
-            for data, due in frames:
-                # The WebSocket frame's bytes once for all viewers of this
-                # format (Viewer.offer writes them as they are), the frame's
-                # own bytes as the owner encoded them: never decoded here.
-                wire = binary_frame(data) if viewers else None
-                for viewer in viewers:
-                    viewer.offer(data, WRITE_LIMIT, wire)
+            for tick, due in ticks:
+                if viewers:
+                    self._offer_tick(viewers, (character, key), tick)
                 if due:
                     written.add(asyncio.get_running_loop().time() - due)
 
-    def _wants(self) -> dict[str, set[ViewOptions]]:
-        return {
-            character: {viewer.options for viewer in viewers}
-            for character, viewers in self.viewers.items()
-            if viewers
-        }
+    def _offer_tick(self, viewers: Iterable[Viewer], key: tuple[str, str], tick: FrameTick) -> None:
+        """What ``realizer serve`` offers each viewer on this tick
+        (RealizerService._deliver_frame): a ``same`` to one that asked for
+        them and already has this content, the whole frame to the others;
+        on a coded tick sent whole (the coder coded) every viewer gets it.
+        Each message's WebSocket bytes are built once for all viewers."""
+        same: tuple[bytes, bytes] | None = None
+        whole: tuple[bytes, bytes] | None = None
+        if tick.frame is not None:
+            whole = (tick.frame, binary_frame(tick.frame))
+        for viewer in viewers:
+            coded = viewer.options.coded
+            if viewer.same and viewer.version == tick.content and not (coded and whole):
+                if same is None:
+                    data = codec.same_message(tick.number)
+                    same = (data, binary_frame(data))
+                viewer.offer_same(same[0], WRITE_LIMIT, same[1])
+                continue
+            if whole is None:
+                last = self._whole.get(key)
+                if coded or last is None or last.content != tick.content:
+                    # This content never reached this gateway whole (a NATS
+                    # message lost, or it joined the stream on a same):
+                    # nothing rather than a stale picture; the next whole
+                    # frame (at most a second away) brings it.
+                    self.frames_unknown += 1
+                    continue
+                data = restamp(last.frame, tick.number, tick.time)
+                whole = (data, binary_frame(data))
+                self.frames_restamped += 1
+            viewer.offer(whole[0], WRITE_LIMIT, whole[1])
+            viewer.version = tick.content
+
+    def _wants(self) -> tuple[dict[str, set[ViewOptions]], dict[str, set[ViewOptions]]]:
+        """The formats this gateway's viewers want per character, and those
+        of them that some viewer here wants whole every tick (it asked for
+        no ``same``)."""
+        wants: dict[str, set[ViewOptions]] = {}
+        every: dict[str, set[ViewOptions]] = {}
+        for character, viewers in self.viewers.items():
+            for viewer in viewers:
+                wants.setdefault(character, set()).add(viewer.options)
+                if not viewer.same:
+                    every.setdefault(character, set()).add(viewer.options)
+        return wants, every
 
     async def _announce(self) -> None:
         """Tell the workers what formats this gateway's viewers want: at
@@ -554,7 +624,7 @@ class ClusterGateway(RealizerService):
                 await asyncio.wait_for(self._want_changed.wait(), self.cluster.want_interval)
             self._want_changed.clear()
             with contextlib.suppress(Exception):
-                await self.nats.publish(SUBJECT_WANT, pack_want(self.gateway_id, self._wants()))
+                await self.nats.publish(SUBJECT_WANT, pack_want(self.gateway_id, *self._wants()))
 
     async def _watch_leases(self, watcher: Any) -> None:
         async for entry in watcher:
@@ -575,12 +645,15 @@ class ClusterGateway(RealizerService):
         from the mesh message (its frames now carry the new owner's clock)."""
         for key in [k for k in self._newest if k[0] == character]:
             del self._newest[key]  # the old owner's frames must not follow the new mesh
+        for key in [k for k in self._whole if k[0] == character]:
+            del self._whole[key]
         mesh = self.meshes.get(character)
         if mesh is None:
             return
         model = self.models.get(character)
         for viewer in self.viewers.get(character, set()):
             viewer.latest = None
+            viewer.version = -1  # the new subscription's first frame is sent whole
             self._control(viewer, mesh)
             if viewer.wants_model and model:
                 viewer.control.append(model)

@@ -16,19 +16,24 @@ worker or a gateway hold unbounded state.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass, fields
 from typing import Any, Literal
 
 import msgpack
+import numpy as np
+import numpy.typing as npt
 
 from realizer.service.errors import PeerError
 from realizer.service.limits import valid_character_id
 from realizer.service.messages import BlockState, ViewOptions
 from realizer.service.stage import BlockEvent, Outgoing, WireFeedback
 
-CLUSTER_VERSION = 1
+#: 2: frames travel in a frame-tick envelope, whole or as a ``same`` of a
+#: few bytes (protocols/cluster.md, "Frames"); 1 published whole frames only.
+CLUSTER_VERSION = 2
 PREFIX = f"realizer.v{CLUSTER_VERSION}"
 #: The queue group of the workers on the claim subject: one of them answers.
 WORKER_QUEUE = "realizer-workers"
@@ -50,10 +55,13 @@ class ClusterLimits:
     ``want_characters``: characters in one gateway's interest message;
     ``want_formats``: viewer formats of one character in it;
     ``lease_blocks``: open block ids a lease records;
-    ``id_chars``: a worker's, gateway's or block's id.
+    ``id_chars``: a worker's, gateway's or block's id;
+    ``frame_bytes``: a frame-tick message (a float32 vertex frame of the
+    default face is 73 kB).
     """
 
     request_bytes: int = 256 * 1024 + 4096
+    frame_bytes: int = 16 * 1024 * 1024
     want_characters: int = 1024
     want_formats: int = 16
     lease_blocks: int = 64
@@ -115,6 +123,7 @@ def read_options(data: Any) -> ViewOptions:
     if not isinstance(data, dict):
         raise ClusterMessageError("a viewer format is a map")
     names = {f.name for f in fields(ViewOptions)}
+    data = {k: v for k, v in data.items() if k != "every"}  # the want message's own key
     if not set(data) <= names:
         raise ClusterMessageError(f"unknown viewer format fields {sorted(set(data) - names)}")
     try:
@@ -324,23 +333,37 @@ def unpack_feedback(data: bytes, limit: int = 1024 * 1024) -> FeedbackEnvelope:
 # -- interest (gateway -> workers) ----------------------------------------------------
 
 
-def pack_want(gateway: str, wants: dict[str, set[ViewOptions]]) -> bytes:
-    """A gateway's viewer formats per character (all of them, each time)."""
+def pack_want(
+    gateway: str,
+    wants: dict[str, set[ViewOptions]],
+    every: dict[str, set[ViewOptions]] | None = None,
+) -> bytes:
+    """A gateway's viewer formats per character (all of them, each time);
+    ``every``: the formats of which some viewer here takes no ``same``
+    message, so that it needs a whole frame every tick."""
+    every = every or {}
     return _pack(
         {
             "v": CLUSTER_VERSION,
             "gateway": gateway,
             "characters": {
-                character: [options_dict(o) for o in sorted(formats, key=format_key)]
+                character: [
+                    {**options_dict(o), "every": o in every.get(character, ())}
+                    for o in sorted(formats, key=format_key)
+                ]
                 for character, formats in wants.items()
             },
         }
     )
 
 
+Formats = dict[str, frozenset[ViewOptions]]
+
+
 def unpack_want(
     data: bytes, limits: ClusterLimits = CLUSTER_LIMITS
-) -> tuple[str, dict[str, frozenset[ViewOptions]]]:
+) -> tuple[str, Formats, Formats]:
+    """(gateway, its formats per character, those of them wanted ``every`` tick whole)."""
     message = _unpack(data, 1024 * 1024)
     gateway = _text(message, "gateway", limits.id_chars)
     characters = message.get("characters")
@@ -348,14 +371,89 @@ def unpack_want(
         raise ClusterMessageError(
             f"'characters' must be a map of at most {limits.want_characters} characters"
         )
-    wants: dict[str, frozenset[ViewOptions]] = {}
+    wants: Formats = {}
+    every: Formats = {}
     for character, formats in characters.items():
         if not isinstance(character, str) or not valid_character_id(character):
             raise ClusterMessageError("invalid character id in a want message")
         if not isinstance(formats, list) or len(formats) > limits.want_formats:
             raise ClusterMessageError(f"at most {limits.want_formats} formats per character")
         wants[character] = frozenset(read_options(f) for f in formats)
-    return gateway, wants
+        whole = frozenset(read_options(f) for f in formats if f.get("every") is True)
+        if whole:
+            every[character] = whole
+    return gateway, wants, every
+
+
+# -- frames (owner -> gateways) ---------------------------------------------------------
+
+
+def content_id(mask: npt.ArrayLike, values: npt.ArrayLike) -> int:
+    """What a frame shows, as a 64-bit number: equal for two frames that set
+    the same FAPs to the same values (so show the same vertices, coded FAPs
+    and ARKit weights), different otherwise (a 64-bit BLAKE2b digest of the
+    mask and the set values: a collision is as likely as 1 in 2**64)."""
+    shown = np.asarray(mask, dtype=bool)
+    set_values = np.where(shown, np.asarray(values, dtype="<f8"), 0.0)
+    digest = hashlib.blake2b(shown.tobytes(), digest_size=8)
+    digest.update(set_values.tobytes())
+    return int.from_bytes(digest.digest(), "little")
+
+
+@dataclass(frozen=True, slots=True)
+class FrameTick:
+    """One tick of one character in one viewer format, owner -> gateways.
+
+    ``number`` and ``time``: the frame's ``n`` and ``t`` (the owner's clock);
+    ``content``: :func:`content_id` of what it shows; ``frame``: the
+    viewer's whole frame message as a viewer receives it, or None when the
+    owner sends the tick as a ``same`` (the content is that of the last
+    whole frame it published in this format)."""
+
+    number: int
+    time: float
+    content: int
+    frame: bytes | None = None
+
+    def pack(self) -> bytes:
+        message: dict[str, Any] = {
+            "v": CLUSTER_VERSION,
+            "n": self.number,
+            "t": self.time,
+            "k": self.content,
+        }
+        if self.frame is not None:
+            message["frame"] = self.frame
+        return _pack(message, use_bin_type=True)
+
+    @classmethod
+    def unpack(cls, data: bytes, limits: ClusterLimits = CLUSTER_LIMITS) -> FrameTick:
+        message = _unpack(data, limits.frame_bytes)
+        number, time, content = message.get("n"), message.get("t"), message.get("k")
+        frame = message.get("frame")
+        if not isinstance(number, int) or isinstance(number, bool) or number < 0:
+            raise ClusterMessageError("'n' must be a frame number")
+        if not isinstance(time, int | float) or isinstance(time, bool) or not math.isfinite(time):
+            raise ClusterMessageError("'t' must be a finite number")
+        if not isinstance(content, int) or isinstance(content, bool) or not 0 <= content < 2**64:
+            raise ClusterMessageError("'k' must be a 64-bit content id")
+        if frame is not None and not isinstance(frame, bytes):
+            raise ClusterMessageError("'frame' must be bytes")
+        return cls(number, float(time), content, frame)
+
+
+def restamp(frame: bytes, number: int, time: float) -> bytes:
+    """A whole frame message moved to frame ``number`` at ``time``: the bytes
+    its owner would have encoded for a tick showing the same content (a
+    gateway makes it for a viewer that needs a whole frame on a tick the
+    owner sent as a ``same``: one that just joined). Decodes and encodes
+    once: msgpack keeps the keys' order and every field's type."""
+    message = msgpack.unpackb(frame, raw=False)
+    if not isinstance(message, dict) or message.get("type") != "frame":
+        raise ClusterMessageError("not a frame message")
+    message["n"], message["t"] = number, time
+    data: bytes = msgpack.packb(message, use_bin_type=True)
+    return data
 
 
 # -- leases (the key-value bucket) ------------------------------------------------------

@@ -5,12 +5,16 @@ frame clock, its :class:`~realizer.service.stage.Stage` and sessions, but
 no submitters or viewers of its own: its port serves only ``/health`` and
 ``/version``. Instead it
 
-* answers requests for the characters it owns (``realizer.v1.req.<c>``),
-  and claims unowned characters offered on ``realizer.v1.claim`` (a queue
+* answers requests for the characters it owns (``realizer.v2.req.<c>``),
+  and claims unowned characters offered on ``realizer.v2.claim`` (a queue
   group: one worker answers) by creating their lease;
-* publishes every feedback message on ``realizer.v1.fb.<c>`` and every
-  frame, encoded once per viewer format that some gateway wants, on
-  ``realizer.v1.frame.<c>.<format>`` (frames carry this worker's clock);
+* publishes every feedback message on ``realizer.v2.fb.<c>`` and each
+  tick's frame, for each viewer format that some gateway wants, on
+  ``realizer.v2.frame.<c>.<format>`` (frames carry this worker's clock):
+  whole (encoded once per format) when what it shows changed since the
+  last whole frame of that format, once a second, and every tick for a
+  format some gateway's viewer wants whole; otherwise as a ``same`` of a
+  few bytes, as ``realizer serve`` sends its viewers;
 * renews its leases by compare-and-set, watches everyone's leases, and
   takes over a character whose lease it has seen unrenewed for the lease
   time (realizer.service.cluster.leases), ending the blocks the lost owner
@@ -62,9 +66,12 @@ from realizer.service.cluster.protocol import (
     SUBJECT_WANT,
     WORKER_QUEUE,
     ClusterMessageError,
+    Formats,
+    FrameTick,
     LeaseValue,
     OwnerReply,
     OwnerRequest,
+    content_id,
     feedback_subject,
     frame_subject,
     pack_feedback,
@@ -82,7 +89,14 @@ from realizer.service.server import (
     Submitter,
     _response,
 )
-from realizer.service.stage import BlockEvent, CharacterTick, Outgoing, Stage, WireFeedback
+from realizer.service.stage import (
+    CODED_INTRA_SECONDS,
+    BlockEvent,
+    CharacterTick,
+    Outgoing,
+    Stage,
+    WireFeedback,
+)
 
 logger = logging.getLogger("realizer.cluster")
 
@@ -108,6 +122,22 @@ class Owned:
     held: list[Outgoing] = field(default_factory=list)  # feedback while not fresh
 
 
+@dataclass(slots=True)
+class FrameStreams:
+    """What a character's owner last published in each viewer format.
+
+    ``version``, ``content``: the encoder's content version last seen and
+    its :func:`~realizer.service.cluster.protocol.content_id`; ``sent``:
+    per format, the content id of the last whole frame published; ``force``:
+    formats whose next tick goes whole (a gateway began to want it, or a
+    coded viewer joined and its intra frame must reach it)."""
+
+    version: int = -1
+    content: int = 0
+    sent: dict[ViewOptions, int] = field(default_factory=dict)
+    force: set[ViewOptions] = field(default_factory=set)
+
+
 class ClusterWorker(RealizerService):
     """A worker; ``await start()``, then ``await shutdown()`` (graceful)."""
 
@@ -119,8 +149,14 @@ class ClusterWorker(RealizerService):
         self.worker_id = cluster.node_id or default_node_id("worker")
         self.table = LeaseTable(cluster.lease_ttl)
         self.owned: dict[str, Owned] = {}
-        self.wants: dict[str, tuple[float, dict[str, frozenset[ViewOptions]]]] = {}
-        self.wanted: dict[str, frozenset[ViewOptions]] = {}
+        #: per gateway: when last heard, its formats per character, and those
+        #: of them that some viewer there wants whole every tick
+        self.wants: dict[str, tuple[float, Formats, Formats]] = {}
+        self.wanted: Formats = {}
+        self.every: Formats = {}
+        self.streams: dict[str, FrameStreams] = {}
+        self.frames_whole = 0
+        self.frames_same = 0
         self.draining = False
         self.takeovers = 0
         self.lost_blocks = 0
@@ -208,6 +244,8 @@ class ClusterWorker(RealizerService):
             takeovers=self.takeovers,
             lostBlocks=self.lost_blocks,
             droppedMessages=self.dropped,
+            framesWhole=self.frames_whole,
+            framesSame=self.frames_same,
             nats=bool(self.nats is not None and self.nats.is_connected),
             timings=summaries(self.timings),
         )
@@ -269,17 +307,63 @@ class ClusterWorker(RealizerService):
                     owned.dirty = True  # the lease's open blocks changed
 
     def _deliver_frame(self, number: int, character_tick: CharacterTick) -> None:
+        """Publish this tick of the character in each format some gateway
+        wants: whole, or as a ``same`` when it shows what the format's last
+        whole frame showed, by ``realizer serve``'s rule for its viewers.
+
+        Whole in a format: when the content changed since that format's
+        last whole frame; once a second (the coded stream's intra frames,
+        and a key frame for a gateway that lost one: it then knows the
+        content again, protocols/cluster.md); every tick for a format that
+        some gateway's viewer wants whole (it asked for no ``same``); and on
+        the tick after a gateway began to want the format. A coded frame
+        goes whole whenever the coder codes one, so no coded viewer's
+        prediction chain is broken (as in ``realizer serve``)."""
         character = character_tick.character
         formats = self.wanted.get(character)
         owned = self.owned.get(character)
         if not formats or owned is None or not self._fresh(owned):
             return
-        encoded = self._encoder(character).encode(
-            number, character_tick.time, character_tick.frame, formats
+        encoder = self._encoder(character)
+        streams = self.streams.get(character)
+        if streams is None:
+            streams = self.streams[character] = FrameStreams()
+        version = encoder.observe(character_tick.frame)
+        if version != streams.version:
+            streams.version = version
+            streams.content = content_id(character_tick.frame.mask, character_tick.frame.values)
+        content = streams.content
+        key_due = number % max(1, round(self.config.fps * CODED_INTRA_SECONDS)) == 0
+        every = self.every.get(character, frozenset())
+        whole = {
+            options
+            for options in formats
+            if key_due
+            or options in every
+            or options in streams.force
+            or streams.sent.get(options) != content
+        }
+        encoded = (
+            encoder.encode(number, character_tick.time, character_tick.frame, whole)
+            if whole
+            else {}
         )
         due = self._start + number / self.config.fps
-        for options, data in encoded.items():
-            self._send(frame_subject(character, options), data, due)
+        same = b""
+        for options in formats:
+            data = encoded.get(options)
+            if data is not None:
+                streams.sent[options] = content
+                streams.force.discard(options)
+                tick = FrameTick(number, character_tick.time, content, data)
+                self._send(frame_subject(character, options), tick.pack(), due)
+                self.frames_whole += 1
+            elif options not in whole:
+                same = same or FrameTick(number, character_tick.time, content).pack()
+                self._send(frame_subject(character, options), same, due)
+                self.frames_same += 1
+            # else: wanted whole but not encoded yet (the ARKit fit is being
+            # set up): nothing this tick, as realizer serve's viewers get
 
     # -- requests -----------------------------------------------------------------------
 
@@ -399,6 +483,9 @@ class ClusterWorker(RealizerService):
             encoder = self._encoder(character)
             if request.intra:
                 encoder.want_intra()
+                # the intra frame goes whole, so the joining viewer gets it
+                streams = self.streams.setdefault(character, FrameStreams())
+                streams.force.update(o for o in self.wanted.get(character, ()) if o.coded)
             model = encoder.model_bytes if request.model else b""
             self._reply(msg, OwnerReply("ok", self.worker_id, mesh=encoder.mesh_bytes, model=model))
             return
@@ -408,21 +495,32 @@ class ClusterWorker(RealizerService):
 
     async def _on_want(self, msg: Msg) -> None:
         try:
-            gateway, wants = unpack_want(msg.data)
+            gateway, wants, every = unpack_want(msg.data)
         except ClusterMessageError as exc:
             logger.warning("ignored a want message: %s", exc)
             return
         if gateway not in self.wants and len(self.wants) >= MAX_GATEWAYS:
             return
-        self.wants[gateway] = (time.monotonic(), wants)
+        before = self.wants.get(gateway, (0.0, {}, {}))[1]
+        for character, formats in wants.items():
+            streams = self.streams.get(character)
+            added = formats - before.get(character, frozenset())
+            if streams is not None and added:
+                # that gateway has no whole frame of these yet: send one next tick
+                streams.force.update(added)
+        self.wants[gateway] = (time.monotonic(), wants, every)
         self._recompute_wanted()
 
     def _recompute_wanted(self) -> None:
         wanted: dict[str, set[ViewOptions]] = {}
-        for _, wants in self.wants.values():
+        every: dict[str, set[ViewOptions]] = {}
+        for _, wants, whole in self.wants.values():
             for character, formats in wants.items():
                 wanted.setdefault(character, set()).update(formats)
+            for character, formats in whole.items():
+                every.setdefault(character, set()).update(formats)
         self.wanted = {character: frozenset(formats) for character, formats in wanted.items()}
+        self.every = {character: frozenset(formats) for character, formats in every.items()}
 
     def _forget_idle_characters(self, now: float) -> None:
         """Free characters with no open block for ``character_idle_seconds``
@@ -436,6 +534,7 @@ class ClusterWorker(RealizerService):
             now, self.limits.character_idle_seconds, keep=self.wanted
         ):
             self.encoders.pop(character, None)
+            self.streams.pop(character, None)
             owned = self.owned.pop(character, None)  # at once: no request is taken now
             if owned is not None:
                 self._spawn(self._give_back(character, owned))
@@ -596,6 +695,7 @@ class ClusterWorker(RealizerService):
         # runs is simply forgotten, with its encoder.
         self.stage.characters.pop(character, None)
         self.encoders.pop(character, None)
+        self.streams.pop(character, None)
 
     async def _watch_leases(self, watcher: Any) -> None:
         async for entry in watcher:
@@ -627,7 +727,7 @@ class ClusterWorker(RealizerService):
                 await self._write_lease(character)
         stale = [
             g
-            for g, (seen, _) in self.wants.items()
+            for g, (seen, _, _) in self.wants.items()
             if now - seen > 3.5 * self.cluster.want_interval
         ]
         for gateway in stale:
