@@ -360,25 +360,47 @@ def test_killing_the_owner_mid_block_ends_the_block_and_another_worker_takes_ove
 
 @pytest.mark.slow
 def test_when_a_gateway_is_killed_its_clients_carry_on_at_the_other(cluster: Any) -> None:
+    """A gateway is killed (SIGKILL): its clients' connections end (after
+    what it had already sent), and at the other gateway the same clients
+    run the next block and see its frames.
+
+    Made robust after one failure under load, whose output was not kept
+    (not reproduced in 8 runs pinned to one core: 3 alone, 2 beside 4 and 3
+    beside 10 busy loops on that core, 2 of them on the code before). The
+    steps that load could break are now ordered or bounded by time: the
+    killed gateway's viewer is read until its connection ends (it was read
+    for at most 1000 messages, which a slow first block, 17 s of frames,
+    would exceed; and 5 quiet seconds counted as the end, which now fails);
+    the viewer at the other gateway gets its first frame before the block
+    is sent, so every frame of the block is on its way to it (it was read
+    for lit frames only after that block and a second one were sent, which
+    passes only if the stream reached it in time); and it must see two lit
+    frames (one was enough)."""
     from realizer.service.client import SubmitClient, ViewClient
 
-    _, (gate_a, gate_b) = cluster.start(workers=2, gateways=2)
+    workers, (gate_a, gate_b) = cluster.start(workers=2, gateways=2)
+
+    def logs() -> str:
+        return " | ".join(line for c in [*workers, gate_a, gate_b] for line in c.log[-5:])
+
     submitter = SubmitClient(f"ws://127.0.0.1:{gate_a.port}", character="carol")
     view = ViewClient(f"ws://127.0.0.1:{gate_a.port}", character="carol")
     assert submitter.run_block(smile("one", 0.3, "carol"), timeout=10 * UNIT) == "done"
     gate_a.kill()
-    with pytest.raises((ConnectionClosed, ConnectionLost, TimeoutError)):
-        for _ in range(1000):
-            view.receive(timeout=5 * UNIT)
+    deadline = time.monotonic() + 30 * UNIT
+    with pytest.raises((ConnectionClosed, ConnectionLost)):
+        while True:  # what the gateway had sent, then the end of the connection
+            assert time.monotonic() < deadline, "the dead gateway's viewer was still connected"
+            view.receive(timeout=10 * UNIT)
     submitter.close()
     view.close()
     with (
         SubmitClient(f"ws://127.0.0.1:{gate_b.port}", character="carol") as submitter,
         ViewClient(f"ws://127.0.0.1:{gate_b.port}", character="carol") as view,
     ):
+        next(view.frames(timeout=10 * UNIT))  # the other gateway's stream reaches the viewer
         assert submitter.run_block(smile("two", 0.5, "carol"), timeout=10 * UNIT) == "done"
-        submitter.submit(smile("three", 2.0, "carol"))
-        assert lit_frames(view, 2, 10 * UNIT)
+        assert len(lit_frames(view, 2, 10 * UNIT)) == 2, logs()
 
 
 @pytest.mark.slow
