@@ -15,8 +15,12 @@ at each viewer of its character (p50, p99); frame delivery, from the
 frame's due time on its owner's clock to its arrival at a viewer (p99; the
 owner's frame 0 is on the host's monotonic clock, its ``/health``); frames
 dropped (numbers a viewer never received); CPU per process (percent of one
-core; for the cluster over the measured window, for ``realizer serve``
-from the first viewer's connection on, as the service benchmark takes it).
+core) and the CPU time of all of a side's processes per viewer frame or
+``same`` received (microseconds; both sides over the measured window: a
+figure that load inflates far less than latency, since waiting for a CPU
+costs none); bytes per viewer message (WebSocket headers included: frames
+and ``same`` messages). With ``--pairs N`` the latency the cluster adds
+(median and p99) is printed for each pair and as the median of the pairs.
 The load average is printed before and after the loads and after each
 pair. Each cluster process's own steps come from its ``/health``
 (``timings``, realizer.service.cluster.timing): at the gateways a block's
@@ -113,10 +117,12 @@ def run_cluster_load(
     }
     processes["nats-server"] = psutil.Process(cluster.nats.pid)
     cpu: dict[str, float] = {}
+    cpu_seconds: dict[str, float] = {}
 
     def window() -> None:  # CPU over the measured window only (not the connecting)
         for name, process in processes.items():
             cpu[name] = process.cpu_percent()
+            cpu_seconds[name] = bench_service._cpu_seconds(process) - cpu_seconds.get(name, 0.0)
 
     ports = [g.port for g in gateways]
     # Viewers spread over the gateways, probes from one submitter on the
@@ -133,6 +139,9 @@ def run_cluster_load(
             started[character] = status["clock"]["started"]
     result = analyse(data, started)
     result["cpu"] = cpu
+    result["cpu_seconds"] = cpu_seconds
+    result["delivered"] = sum(len(log.receipts) for log in data["logs"])
+    result["bytes_per_message"] = data["frame_bytes"] / max(1, data["frame_messages"])
     result["owners"] = {w.node_id: len(health(w.port)["owned"]) for w in workers}
     # The processes' own timings (/health; the recent values, this load only:
     # the cluster is started afresh for each load).
@@ -144,6 +153,10 @@ def run_cluster_load(
         timings["counts"] = {
             "superseded": status.get("framesSuperseded", 0),
             "skipped": status["clock"]["skipped"] if "clock" in status else 0,
+            "whole": status.get("framesWhole", 0),
+            "same": status.get("framesSame", 0),
+            "restamped": status.get("framesRestamped", 0),
+            "unknown": status.get("framesUnknown", 0),
         }
         result["timings"][f"{child.role} {i}"] = timings
     return result
@@ -169,9 +182,45 @@ def print_timings(timings: dict[str, dict[str, dict[str, float]]]) -> None:
                     f" ({found['count']})"
                 )
         counts = steps.get("counts", {})
-        key = "superseded" if role == "gateway" else "skipped"
-        parts.append(f"frames {key} {counts.get(key, 0)}")
+        keys: tuple[str, ...] = ("superseded", "restamped", "unknown")
+        if role == "worker":
+            keys = ("skipped", "whole", "same")
+        parts.append("frames " + ", ".join(f"{key} {counts.get(key, 0)}" for key in keys))
         print(f"{'':>18} {name}: " + ", ".join(parts))
+
+
+def run_serve_load(
+    characters: int, viewers: int, seconds: float
+) -> tuple[Any, float, dict[str, Any]]:
+    """``bench_service.run_load``'s load on ``realizer serve``, with its CPU
+    seconds (server and planner processes) over the measured window only,
+    as the cluster's are taken; and the load's data (bytes received)."""
+    limits = [
+        *("--limit", f"viewers_per_character={max(256, viewers)}"),
+        *("--limit", "characters=256", "--limit", "viewer_characters=256"),
+    ]
+    process, port = bench_service.start_server(FPS, limits)
+    try:
+        server = psutil.Process(process.pid)
+        marks: list[float] = []
+
+        def window() -> None:
+            marks.append(bench_service._cpu_seconds(server))
+
+        data = asyncio.run(
+            bench_service.measure(port, characters, viewers, seconds, "none", window=window)
+        )
+        spent = marks[1] - marks[0]
+        cpu = 100 * spent / (data["ended"] - data["began"])
+        one = bench_service.analyse(characters, viewers, data, server, cpu, health(port))
+        return one, spent, data
+    finally:
+        bench_service.stop_server(process)
+
+
+def cpu_per_frame(seconds: float, frames: int) -> float:
+    """Microseconds of CPU per viewer frame (or same) delivered."""
+    return 1e6 * seconds / max(1, frames)
 
 
 async def one_takeover(gateway: int, character: str, workers: list[Any]) -> float:
@@ -239,6 +288,7 @@ def run(
         f"load average {os.getloadavg()[0]:.2f} at the start"
     )
     runs: list[tuple[tuple[int, int], Any, dict[str, Any], float]] = []
+    serve_extra: list[tuple[float, float]] = []  # (CPU seconds, bytes per message)
     limits = ["--limit", "characters=256", "--limit", "viewers_per_character=256"]
     limits += ["--limit", "viewer_characters=256"]
     # Each load on one process, then at once on a fresh cluster (started
@@ -251,10 +301,13 @@ def run(
                 workers=2, gateways=2, worker_args=limits, gateway_args=limits
             )
             one = None
+            extra = (float("nan"), float("nan"))
             try:
-                one = bench_service.run_load(characters, viewers, seconds)
+                one, spent, served = run_serve_load(characters, viewers, seconds)
+                extra = (spent, served["frame_bytes"] / max(1, served["frame_messages"]))
             except Exception as exc:  # an overloaded machine: say so, measure the cluster anyway
                 skipped(f"serve {characters} x {viewers}", f"{type(exc).__name__}: {exc}")
+            serve_extra.append(extra)
             many = run_cluster_load(cluster, workers, gateways, characters, viewers, seconds)
         runs.append((load, one, many, os.getloadavg()[0]))
     print(f"load average {os.getloadavg()[0]:.2f} after the loads")
@@ -273,7 +326,9 @@ def run(
         f"{'accepted p50':>12} {'p99':>6} | "
         f"{'delivery p99':>12} | {'written p99':>11} | {'dropped':>13} | CPU % of a core"
     )
-    for load, one, many, load_average in runs:
+    for (load, one, many, load_average), (serve_cpu, serve_bytes) in zip(
+        runs, serve_extra, strict=True
+    ):
         if one is not None:
             written = getattr(one, "written_p99", float("nan")) * 1000
             print(
@@ -300,6 +355,39 @@ def run(
             f"load average {load_average:.2f} after this pair"
         )
         print_timings(many["timings"])
+        if one is not None:
+            frames_served = len(one.delivery)  # one per receipt in the window
+            cluster_cpu = sum(many["cpu_seconds"].values())
+            per_role = {
+                role: sum(v for k, v in many["cpu_seconds"].items() if k.startswith(role))
+                for role in ("worker", "gateway", "nats-server")
+            }
+            print(
+                f"{'':>18} CPU per viewer frame (us, the window's CPU seconds / frames "
+                f"and sames received): serve {cpu_per_frame(serve_cpu, frames_served):.1f}, "
+                f"cluster {cpu_per_frame(cluster_cpu, many['delivered']):.1f} ("
+                + ", ".join(
+                    f"{role} {cpu_per_frame(v, many['delivered']):.1f}"
+                    for role, v in per_role.items()
+                )
+                + f"); bytes per viewer message: serve {serve_bytes:.1f}, "
+                f"cluster {many['bytes_per_message']:.1f}"
+            )
+    for load in dict.fromkeys(load for load, _, _, _ in runs):
+        added = [
+            (ms(many["latencies"], 50) - ms(one.latencies, 50),
+             ms(many["latencies"], 99) - ms(one.latencies, 99))
+            for at, one, many, _ in runs
+            if at == load and one is not None
+        ]  # fmt: skip
+        if len(added) > 1:
+            print(
+                f"{load[0]} x {load[1]}, latency added by the cluster over {len(added)} pairs: "
+                f"median {', '.join(f'{a:+.1f}' for a, _ in added)} ms "
+                f"(median of them {statistics.median(a for a, _ in added):+.1f}); "
+                f"p99 {', '.join(f'{b:+.1f}' for _, b in added)} ms "
+                f"(median of them {statistics.median(b for _, b in added):+.1f})"
+            )
     for load, one, many, _ in runs:
         name = f"{load[0]} x {load[1]}"
         one_p99 = ms(one.latencies, 99) if one is not None else float("nan")

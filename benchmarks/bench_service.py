@@ -324,6 +324,9 @@ async def measure(
         "began": began,
         "ended": ended,
         "acceptance": acceptance,
+        # frame and same messages, WebSocket headers included (the whole run)
+        "frame_bytes": sum(lean_viewer.frame_bytes for lean_viewer in lean),
+        "frame_messages": sum(lean_viewer.frame_messages for lean_viewer in lean),
     }
 
 
