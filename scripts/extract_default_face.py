@@ -36,8 +36,10 @@ What is kept and why:
   too coarse to draw an iris on; each is replaced by a UV sphere with the same
   centre (the ``joint-*-eye`` cube) and radius, its pole on the +z axis so
   that iris and pupil rings are exact circles of vertices.
-* teeth and tongue: ``helper-upper-teeth``, ``helper-lower-teeth`` and
-  ``helper-tongue`` as they are.
+* teeth: ``helper-upper-teeth`` and ``helper-lower-teeth`` as they are;
+  tongue: ``helper-tongue`` (224 quads) refined once by Catmull-Clark
+  subdivision (:func:`catmull_clark`), since the helper's facets showed in
+  close-ups; the artist's targets follow it through the same linear map.
 
 Usage::
 
@@ -266,10 +268,64 @@ class HeadMesh:
     parts: dict[str, tuple[int, int]]  # name -> [start, stop)
     sub_parts: dict[str, tuple[int, int]]
     skin_quads: IntArray  # (q, 4) the skin's quads, head indices
+    # sub-part -> (hm08 vertices of its control mesh, (k, c) sparse map from
+    # their positions to the sub-part's k vertices): a subdivided helper
+    refined: dict[str, tuple[IntArray, Any]] = dataclasses.field(default_factory=dict)
 
     def part(self, name: str) -> IntArray:
         start, stop = self.sub_parts.get(name) or self.parts[name]
         return np.arange(start, stop)
+
+
+def catmull_clark(quads: IntArray, n: int) -> tuple[Any, IntArray]:
+    """One step of Catmull-Clark subdivision of a closed quad mesh on
+    vertices 0..n-1 (every edge shared by two quads): the (n + e + f, n)
+    sparse matrix taking the control points to the refined mesh's vertices
+    (the n moved originals first, then one per edge, then one per quad) and
+    the refined quads (4 per quad, same orientation). Linear, so a morph
+    target's offsets refine with the same matrix."""
+    from scipy.sparse import coo_matrix, csr_matrix
+
+    f = len(quads)
+    edges = np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2)
+    key = np.sort(edges, axis=1)
+    unique, edge_of = np.unique(key, axis=0, return_inverse=True)
+    edge_of = edge_of.reshape(f, 4)
+    e = len(unique)
+    if np.bincount(edge_of.ravel(), minlength=e).min() != 2:
+        raise ValueError("catmull_clark needs a closed quad mesh")
+    face_rows = np.repeat(np.arange(f), 4)
+    face_point = csr_matrix((np.full(4 * f, 0.25), (face_rows, quads.ravel())), shape=(f, n))
+    # the quads on each side of each edge
+    edge_faces = np.argsort(edge_of.ravel(), kind="stable").reshape(e, 2) // 4
+    edge_ends = csr_matrix(
+        (np.full(2 * e, 0.5), (np.repeat(np.arange(e), 2), unique.ravel())), shape=(e, n)
+    )
+    edge_sides = csr_matrix(
+        (np.full(2 * e, 0.5), (np.repeat(np.arange(e), 2), edge_faces.ravel())), shape=(e, f)
+    )
+    edge_point = 0.5 * edge_ends + 0.5 * (edge_sides @ face_point)
+    # original points: (F + 2 R + (k - 3) P) / k, k the valence
+    valence = np.bincount(unique.ravel(), minlength=n).astype(np.float64)
+    around_faces = coo_matrix((np.ones(4 * f), (quads.ravel(), face_rows)), shape=(n, f)).tocsr()
+    around_edges = coo_matrix(
+        (np.ones(2 * e), (unique.ravel(), np.repeat(np.arange(e), 2))), shape=(n, e)
+    ).tocsr()
+    inverse = coo_matrix((1.0 / valence, (np.arange(n), np.arange(n))), shape=(n, n)).tocsr()
+    mean_faces = inverse @ around_faces @ face_point
+    mean_mids = inverse @ around_edges @ edge_ends
+    keep = coo_matrix(((valence - 3.0), (np.arange(n), np.arange(n))), shape=(n, n)).tocsr()
+    point = inverse @ (mean_faces + 2.0 * mean_mids + keep)
+    from scipy.sparse import vstack
+
+    matrix = vstack([point, edge_point, face_point]).tocsr()
+    refined = []
+    for corner in range(4):
+        before, after = edge_of[:, (corner - 1) % 4], edge_of[:, corner]
+        refined.append(
+            np.stack([quads[:, corner], n + after, n + e + np.arange(f), n + before], axis=1)
+        )
+    return matrix, np.stack(refined, axis=1).reshape(-1, 4)
 
 
 def extract_head(base: BaseMesh) -> HeadMesh:
@@ -293,6 +349,7 @@ def extract_head(base: BaseMesh) -> HeadMesh:
     sources: list[IntArray] = []
     parts: dict[str, tuple[int, int]] = {}
     sub_parts: dict[str, tuple[int, int]] = {}
+    refined: dict[str, tuple[IntArray, Any]] = {}
     offset = 0
     for part, sub, _, quads in pieces:
         if sub.startswith("eye_"):
@@ -307,7 +364,14 @@ def extract_head(base: BaseMesh) -> HeadMesh:
             remap = np.full(len(v), -1, dtype=np.int64)
             remap[src] = np.arange(len(src))
             verts = v[src]
-            tris = remap[triangulate(quads)]
+            local = remap[quads]
+            if sub == "tongue":
+                matrix, local = catmull_clark(local, len(src))
+                verts = matrix @ verts
+                refined[sub] = (src, matrix)
+                # the moved originals keep their hm08 vertex (ARKit fitting)
+                src = np.concatenate([src, np.full(len(verts) - len(src), -1, dtype=np.int64)])
+            tris = triangulate(local)
         vertices.append(verts)
         faces.append(tris + offset)
         sources.append(src)
@@ -323,6 +387,7 @@ def extract_head(base: BaseMesh) -> HeadMesh:
         parts,
         sub_parts,
         _quads_in_head(skin_quads, sources[0]),  # skin is the first piece: offset 0
+        refined,
     )
 
 
@@ -737,12 +802,21 @@ def target_table(
     return shape_table(fap, (-1000.0, 1000.0), [per_unit], np.sort(idx))
 
 
-def dense_offsets(target: Target, to_head: IntArray, n: int) -> FloatArray:
-    """A target's offsets on the head's vertices (n, 3), hm08 units."""
+def dense_offsets(
+    target: Target, to_head: IntArray, n: int, head: HeadMesh | None = None
+) -> FloatArray:
+    """A target's offsets on the head's vertices (n, 3), hm08 units; with
+    ``head``, its subdivided parts (HeadMesh.refined) get the offsets of
+    their control points through the subdivision's map."""
     out = np.zeros((n, 3))
     idx = to_head[target.indices]
     ok = idx >= 0
     out[idx[ok]] = target.offsets[ok]
+    for sub, (control, matrix) in (head.refined if head is not None else {}).items():
+        dense = np.zeros((int(max(control.max(), target.indices.max())) + 1, 3))
+        dense[target.indices] = target.offsets
+        start, stop = head.sub_parts[sub]
+        out[start:stop] = matrix @ dense[control]
     return out
 
 
@@ -1035,6 +1109,92 @@ def lip_side_table(
     axis = np.asarray(direction)[None, :]
     keep = np.flatnonzero((fields[0] > 0.0) | (fields[1] > 0.0))
     return shape_table(fap, (-1000.0, 0.0, 1000.0), [f[:, None] * axis for f in fields], keep)
+
+
+#: The pout tables (pout_tables) fade out between these distances (metres)
+#: from the mouth's middle.
+POUT_REACH_M = (0.025, 0.04)
+
+
+def pout_tables(
+    v: FloatArray,
+    triangles: IntArray,
+    skin: IntArray,
+    pucker: FloatArray,
+    lower: IntArray,
+    upper: IntArray,
+    middle: FloatArray,
+    corner: float,
+    lower_point: int,
+    upper_point: int,
+) -> tuple[FloatArray, FloatArray]:
+    """The lower and the upper lip's shares (n, 3) of the artist's
+    mouthPucker without its sideways part (the corners drawing in is the
+    stretch FAPs' negative side): push_b_lip and push_t_lip (16, 17) push
+    the lip out round, as a pout does (the lip field translated the lip
+    forward as a slab with square edges). The split is a harmonic weight, 1
+    on the lower lip (``lower``), 0 on the upper (``upper``), smooth
+    between, so the two shares add up to the pucker; both fade out from
+    POUT_REACH_M[0] to POUT_REACH_M[1] from the mouth's ``middle`` (the
+    pucker also nudges the cheeks), and along the mouth from half way to
+    the lip corners (|x| = ``corner``) to nothing there, where the lips
+    meet (the upper and lower shares, split across the corner, folded it)."""
+    split = harmonic_fill(
+        v,
+        triangles,
+        np.concatenate([lower, upper]),
+        np.concatenate([np.ones(len(lower)), np.zeros(len(upper))]),
+        np.setdiff1d(skin, np.union1d(lower, upper)),
+    )
+    forward = pucker.copy()
+    forward[:, 0] = 0.0
+    forward[np.setdiff1d(np.arange(len(v)), skin)] = 0.0
+    distance = np.linalg.norm(v - middle, axis=1)
+    forward *= 1.0 - rise(distance, *POUT_REACH_M)[:, None]
+    forward *= 1.0 - rise(np.abs(v[:, 0]), 0.5 * corner, corner)[:, None]
+    shares = []
+    lower_share, upper_share = forward * split[:, None], forward * (1.0 - split[:, None])
+    for share, point in ((lower_share, lower_point), (upper_share, upper_point)):
+        # Table 7's push is along the depth axis: the lip's feature point
+        # moves straight forward (the rest keeps the pucker's roll, less
+        # the same shear)
+        share[:, 1] -= share[:, 2] * float(share[point, 1] / share[point, 2])
+        shares.append(share)
+    return shares[0], shares[1]
+
+
+#: The chin's motion down (18 negative) is nothing on the lower lip and
+#: whole this far (metres) below its outer contour.
+CHIN_LIP_CLEAR_M = 0.008
+
+
+def chin_table(
+    v: FloatArray,
+    lower_face: IntArray,
+    fp: dict[str, FloatArray],
+    radii: tuple[float, float, float],
+) -> Any:
+    """depress_chin (18) as a FaceDefMesh: a raised cosine round 2.10 (half
+    axes ``radii``; flat at 2.10 and at the rim: a linear falloff made the
+    chin a cone's point) on the lower face, 2.10 one MNS per unit up.
+    Upwards the chin pushes the lower lip up with it; downwards the lip
+    stays (the sphere pulled the lower lip's outline down to a point in the
+    middle): the weight fades in from the lower lip's outer contour
+    (8.3, 8.7, 8.2, 8.8, 8.4) to CHIN_LIP_CLEAR_M below it."""
+    r = np.linalg.norm((v - fp["2.10"]) / np.asarray(radii), axis=1)
+    weight = np.zeros(len(v))
+    weight[lower_face] = np.where(
+        r[lower_face] < 1.0, 0.5 * (1.0 + np.cos(np.pi * np.minimum(r[lower_face], 1.0))), 0.0
+    )
+    contour = np.array([fp[k][:2] for k in ("8.4", "8.8", "8.2", "8.7", "8.3")])
+    below = np.interp(v[:, 0], contour[:, 0], contour[:, 1]) - v[:, 1]
+    down = weight * rise(below, 0.0, CHIN_LIP_CLEAR_M)
+    up_ = np.zeros((len(v), 3))
+    up_[:, 1] = weight
+    lowered = np.zeros((len(v), 3))
+    lowered[:, 1] = down
+    keep = np.flatnonzero(weight > 1e-3)
+    return shape_table(18, (-1000.0, 0.0, 1000.0), [lowered, up_], keep)
 
 
 def bump(x: FloatArray, centre: float, end_a: float, end_b: float) -> FloatArray:
@@ -1356,7 +1516,7 @@ def cheek_tables(
 #: Nose wings (61, 62): the skin within NOSE_WING_CORE_M of 9.1 (9.2) moves
 #: whole, nothing farther than NOSE_WING_REACH_M from it, and the nose's
 #: middle (|x| under NOSE_MIDDLE_SHARE of the wing's) stays.
-NOSE_WING_CORE_M = 0.003
+NOSE_WING_CORE_M = 0.006
 NOSE_WING_REACH_M = 0.015
 NOSE_MIDDLE_SHARE = 0.45
 
@@ -1396,6 +1556,40 @@ def tongue_thrust_table(shape: FloatArray, tongue: IntArray, tip: int) -> Any:
     return shape_table(45, (-1000.0, 1000.0), [per_unit], moved)
 
 
+#: Tongue tables (tongue_bend_tables): along the tongue, from its root (0)
+#: to the tip 6.1 (1), the tip's FAPs (43, 44) bend what lies beyond
+#: TONGUE_TIP_BEND_FROM, more towards the tip; raising the tongue (46)
+#: lifts it whole beyond TONGUE_BODY_FULL, the root staying.
+TONGUE_TIP_BEND_FROM = 0.3
+TONGUE_BODY_FULL = 0.5
+
+
+def tongue_bend_tables(v: FloatArray, tongue: IntArray, tip: int) -> list[Any]:
+    """shift_tongue_tip (43), raise_tongue_tip (44) and raise_tongue (46) as
+    FaceDefMesh tables of a weight along the tongue's length (a function of
+    depth only, so every cross-section moves as one and the tongue bends as
+    a whole; spheres round 6.1 and 6.2 dented it and left a V notch at the
+    top): 43 and 44 ``rise`` from TONGUE_TIP_BEND_FROM of the way from the
+    root to 1 at the tip (6.1 one FAPU per unit, sideways or up), 46 from
+    the root to 1 at TONGUE_BODY_FULL and beyond (the body and the tip rise
+    alike). Negative values go the same way back."""
+    z = v[tongue, 2]
+    along = (z - float(z.min())) / (float(v[tip, 2]) - float(z.min()))
+    n = len(v)
+    tables = []
+    for fap, start, end, direction in (
+        (43, TONGUE_TIP_BEND_FROM, 1.0, (-1.0, 0.0, 0.0)),
+        (44, TONGUE_TIP_BEND_FROM, 1.0, (0.0, 1.0, 0.0)),
+        (46, 0.0, TONGUE_BODY_FULL, (0.0, 1.0, 0.0)),
+    ):
+        weight = rise(along, start, end)
+        per_unit = np.zeros((n, 3))
+        per_unit[tongue] = weight[:, None] * np.asarray(direction)[None, :]
+        per_unit /= float(np.abs(per_unit[tip]).max())
+        tables.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], np.asarray(tongue)))
+    return tables
+
+
 def tongue_roll_table(v: FloatArray, tongue: IntArray, middle_x: float) -> Any:
     """tongue_roll (47) as a FaceDefMesh: each tongue vertex rises by
     angle x d**2 / h (d its distance from the tongue's middle, h the
@@ -1431,7 +1625,6 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     as they stretch, Tekalp and Ostermann 2000, section 2.1.3.1's example of FAP 54).
     """
     from realizer.face.model import (
-        CosineDeformer,
         DilateDeformer,
         EaseDeformer,
         TransformDeformer,
@@ -1498,7 +1691,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
 
     def shape(name: str) -> FloatArray:
         """A morph target's offsets on the head, metres."""
-        out: FloatArray = dense_offsets(targets[name], to_head, n_all) * METRES_PER_UNIT
+        out: FloatArray = dense_offsets(targets[name], to_head, n_all, head) * METRES_PER_UNIT
         return out
 
     def ease(
@@ -1563,6 +1756,12 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         ("lower", "outer"): ("8.3", "8.7", "8.2", "8.8", "8.4"),
     }
     lips = {"upper": upper_lip, "lower": lower_lip}
+    lower_share, upper_share = pout_tables(
+        v, skin_triangles, skin, shape("mouthPucker"), np.intersect1d(on_lips, lower_lip),
+        np.intersect1d(on_lips, upper_lip), (fp["2.2"] + fp["2.3"]) / 2,
+        float(fp["2.4"][0] - fp["2.5"][0]) / 2, fp_index["2.3"], fp_index["2.2"],
+    )  # fmt: skip
+    pout = {16: (lower_share, "2.3"), 17: (upper_share, "2.2")}
     for fap, point, direction, lip, contour in (
         (4, "2.2", down, "upper", "inner"),
         (8, "2.6", down, "upper", "inner"),
@@ -1594,6 +1793,14 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         )
         per_unit = weight[:, None] * np.asarray(direction)[None, :]
         keep = np.flatnonzero(weight > 0.0)
+        if fap in pout:
+            # pushing a lip out (16, 17 positive): its share of the artist's
+            # pucker (pout_tables); pulling it back (negative): the field
+            share, anchor = pout[fap]
+            out = share / float(share[fp_index[anchor], 2])
+            keep = np.union1d(keep, np.flatnonzero(np.abs(out).max(axis=1) > 0.0))
+            deformers.append(shape_table(fap, (-1000.0, 0.0, 1000.0), [per_unit, out], keep))
+            continue
         deformers.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], keep))
     # Lip corners: FaceDefMesh tables from the CC0 ARKit targets (spheres
     # made the lip line a straight diagonal with a kink). Raising (12, 13
@@ -1641,16 +1848,10 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         deformers.append(
             signed_table(fap, level, None, corner_points[side], axis, mouth_parts, CORNER_SHARE)
         )
-    # Chin raiser: the chin below the lower lip, up; a raised cosine (flat
-    # at 2.10 and at the rim) where a linear falloff made the chin a cone's
-    # point when pulled down.
-    masks[18] = lower_face
+    # Chin raiser (18): the chin below the lower lip, up (chin_table).
     deformers.append(
-        CosineDeformer(
-            fap=18, direction=up, size=round(1.7 * mns0, 5), scale=(1.3, 0.8, 1.0),
-            use_vertex_mask=True,
-        )
-    )  # fmt: skip
+        chin_table(v, lower_face, fp, (1.3 * 1.7 * mns0, 0.8 * 1.7 * mns0, 1.7 * mns0))
+    )
 
     # Eyelids (19..22): FaceDefMesh tables from the CC0 ARKit targets, which
     # an artist sculpted for this mesh (influence spheres made steps and
@@ -1834,16 +2035,13 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         cheek_tables(v, head.faces, cheek_shapes, fp_index, skin_only, parts["mouth_inside"])
     )
 
-    # Tongue: the tip (43, 44) bends the front half; 45 slides it out; 46
-    # lifts the body; 47 rolls both borders up into a U.
+    # Tongue: the tip (43, 44) bends the front; 46 lifts the body
+    # (tongue_bend_tables); 45 slides it out; 47 rolls both borders up into a U.
     tongue = parts["tongue"]
-    length = float(np.ptp(v[tongue, 2]))
-    ease(43, right, 0.7 * length, part="tongue")
-    ease(44, up, 0.7 * length, part="tongue")
+    deformers.extend(tongue_bend_tables(v, tongue, fp_index["6.1"]))
     # thrust (45): the artist's tongueOut, the whole tongue sliding out (a
     # sphere round 6.1 stretched its front half); 6.1 one MW per unit forward
     deformers.append(tongue_thrust_table(shape("tongueOut"), tongue, fp_index["6.1"]))
-    ease(46, up, 0.8 * length, part="tongue")
     deformers.append(tongue_roll_table(v, tongue, float(fp["6.2"][0])))
 
     # Head: pitch, yaw and roll about the top of the spine (7.1); the neck

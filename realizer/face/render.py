@@ -201,6 +201,28 @@ def vertex_colours(
     return colours
 
 
+def closed_outward(
+    vertices: npt.ArrayLike, faces: npt.NDArray[np.integer[Any]], part: npt.NDArray[np.int64]
+) -> bool:
+    """Whether the triangles on the vertices ``part`` form a closed surface
+    (every edge shared by exactly two of them, in opposite directions) that
+    faces outwards (positive signed volume), so its back faces never show."""
+    v = np.asarray(vertices, dtype=np.float64)
+    inside = np.zeros(len(v), dtype=bool)
+    inside[part] = True
+    tri = np.asarray(faces, dtype=np.int64)
+    tri = tri[inside[tri].all(axis=1)]
+    if len(tri) < 4:
+        return False
+    directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    forward = directed[:, 0] * len(v) + directed[:, 1]
+    backward = directed[:, 1] * len(v) + directed[:, 0]
+    if len(np.unique(forward)) != len(forward) or not np.isin(backward, forward).all():
+        return False
+    a, b, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+    return float(np.einsum("ij,ij->", a, np.cross(b, c))) > 0.0
+
+
 def vertex_normals(
     vertices: npt.NDArray[np.floating[Any]], faces: npt.NDArray[np.integer[Any]]
 ) -> npt.NDArray[np.float32]:
@@ -468,7 +490,7 @@ def surface_attributes(
                 z_lips = float(feature_at("2.3")[2])
         for indices, brightest, material in (
             (inner[0], 0.8, MATERIAL_TEETH),
-            (inner[1], 0.42, MATERIAL_MOUTH),
+            (inner[1], 0.6, MATERIAL_MOUTH),
             (inner[2], 0.4, MATERIAL_MOUTH),
         ):
             if indices is None or not len(indices):
@@ -546,12 +568,16 @@ class FaceRenderer:
         n = len(face.vertices)
         # The skin and the eyes are closed surfaces seen from outside: their
         # back faces are culled (half the rasterising). The mouth's inside,
-        # teeth and tongue are drawn from both sides; they go last.
+        # teeth and tongue are drawn from both sides; they go last; but a
+        # tongue that is a closed surface facing out (the default face's)
+        # is culled like the skin.
         triangles = np.asarray(face.faces, dtype=np.uint32)
         two_sided = np.zeros(n, dtype=bool)
         for name in ("teeth", "tongue", "mouth_inside"):
             indices = face_part(face, name)
             if indices is not None:
+                if name == "tongue" and closed_outward(face.vertices, triangles, indices):
+                    continue
                 two_sided[indices] = True
         both = two_sided[triangles].any(axis=1)
         self._faces = np.ascontiguousarray(np.concatenate([triangles[~both], triangles[both]]))
