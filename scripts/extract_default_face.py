@@ -913,6 +913,12 @@ LIP_BAND_FLOOR = 0.7
 LIP_CORNER_SHARE = 0.85
 
 
+#: The outer lip midpoints' FAPs (51, 52) move the middle of the lip's
+#: outline whole over this share of the way to the corners, then fade (the
+#: raised cosine's peak pulled the outline to a vertex: a dome, a pouch).
+LIP_OUTER_MIDDLE_FLAT = 0.3
+
+
 def lip_profile(x: FloatArray, centre: float, corner: float) -> FloatArray:
     """The share of a lip FAP's motion along the mouth (x): 1 at the FAP's
     feature point (x = ``centre``), falling as a raised cosine to 0 at the
@@ -995,6 +1001,14 @@ def smile_curve(shape: FloatArray, v: FloatArray, corner: float) -> FloatArray:
     return out
 
 
+def outer_middle_profile(x: FloatArray, centre: float, corner: float) -> FloatArray:
+    """The profile along the mouth of 51 and 52 (lip_field's ``profile``):
+    1 out to LIP_OUTER_MIDDLE_FLAT of the way from ``centre`` to the corner,
+    then a sin^2 fade to 0 at ``corner``."""
+    out: FloatArray = 1.0 - rise(np.abs(x - centre), LIP_OUTER_MIDDLE_FLAT * corner, corner)
+    return out
+
+
 def harmonic_fill(
     v: FloatArray,
     triangles: IntArray,
@@ -1060,6 +1074,7 @@ def lip_field(
         dist = np.minimum(dist, np.linalg.norm(p - (a + t[:, None] * (b - a)), axis=1))
     corner = LIP_CORNER_SHARE * float(abs(points[0][0]))
     band = lip[dist < LIP_BAND_M]
+
     # Near the corners the harmonic part takes over (the lips meet there).
     band = band[profile(v[band, 0], centre, corner) >= floor]
     far = skin[np.linalg.norm(v[skin] - anchor, axis=1) > LIP_REACH_M]
@@ -1789,8 +1804,9 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             )  # fmt: skip
             continue
         weight = lip_field(
-            v, skin_triangles, skin, points, float(fp[point][0]), lips[lip], other, fp[point]
-        )
+            v, skin_triangles, skin, points, float(fp[point][0]), lips[lip], other, fp[point],
+            profile=outer_middle_profile if fap in (51, 52) else lip_profile,
+        )  # fmt: skip
         per_unit = weight[:, None] * np.asarray(direction)[None, :]
         keep = np.flatnonzero(weight > 0.0)
         if fap in pout:

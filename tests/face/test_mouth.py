@@ -201,3 +201,30 @@ def test_a_closed_outward_tongue_is_culled_an_open_or_inward_one_is_not(face: Fa
     inward = faces.copy()
     inward[mine] = inward[mine][:, ::-1]
     assert not closed_outward(face.vertices, inward, tongue)
+
+
+@pytest.mark.parametrize("fap, point", [(51, "8.1"), (52, "8.2")])
+def test_the_outer_lip_middle_moves_its_outline_whole_not_to_a_vertex(
+    face: Face, fap: int, point: str
+) -> None:
+    """51 and 52 (both signs, 512 MNS): the outline's middle, out to 30 % of
+    the way to the corners, moves as far as its feature point (the raised
+    cosine's peak, 1 only at 8.1 / 8.2, pulled the outline to a dome or a
+    pouch with a vertex), and the lip corners stay."""
+    v = np.asarray(face.vertices, dtype=np.float64)
+    skin = face.part("skin")
+    p = v[face.feature_vertex(point)]
+    corner = abs(face.feature_position("8.3")[0])
+    near = skin[
+        (np.abs(v[skin, 0]) < 0.25 * corner)
+        & (np.abs(v[skin, 1] - p[1]) < 0.0015)
+        & (v[skin, 2] > p[2] - 0.004)
+    ]
+    assert near.size >= 3
+    for value in (512.0, -512.0):
+        offsets = posed(face, {fap: value}) - v
+        motion = offsets[face.feature_vertex(point), 1]
+        assert abs(motion) == pytest.approx(512 * face.fapu.mns, rel=0.02)
+        assert np.all(offsets[near, 1] / motion > 0.9)
+        for name in ("8.3", "8.4"):
+            assert np.linalg.norm(offsets[face.feature_vertex(name)]) < 0.1 * abs(motion)
