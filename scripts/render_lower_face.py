@@ -10,6 +10,10 @@ repository root:
     git show 28acb96:realizer/face/data/default_face/default_face.npz > /tmp/old/default_face.npz
     git show 28acb96:realizer/face/data/default_face/default_face.xml > /tmp/old/default_face.xml
     .venv/bin/python scripts/render_lower_face.py --before /tmp/old/default_face
+
+``--set mouth`` draws the mouth's fixes instead (the tongue, the lips pushed
+out and their outer middles, the chin, the nostril wings) into
+``docs/images/mouth_before_after.png``, side views framed on the lips.
 """
 
 from __future__ import annotations
@@ -36,44 +40,67 @@ POSES: tuple[tuple[str, str, str, dict[int, float]], ...] = (
 )
 
 
+#: the mouth's fixes (``--set mouth``): the tongue with the jaw open 900 as on
+#: the FAP sheet, the rest at the sheet's values
+MOUTH_POSES: tuple[tuple[str, str, str, dict[int, float]], ...] = (
+    ("tongue tip up 512", "mouth", "front", {3: 900, 44: 512}),
+    ("tongue down -512", "mouth", "front", {3: 900, 46: -512}),
+    ("push_b_lip 512 (side)", "mouth", "left", {16: 512}),
+    ("push_t_lip 512 (side)", "mouth", "left", {17: 512}),
+    ("depress_chin -512", "mouth", "front", {18: -512}),
+    ("raise_b_midlip_o -512", "mouth", "front", {52: -512}),
+    ("stretch_l_nose 96", "nose", "front", {61: 96}),
+)
+
+
 def main() -> None:
     from realizer.commands.fap_sheet import region_framing
     from realizer.face.default import load_default_face
     from realizer.face.deform import deform
     from realizer.face.paramfile import load_face
-    from realizer.face.render import FaceRenderer
+    from realizer.face.render import FaceRenderer, Framing
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--before", required=True, help="the earlier face file (STEM)")
-    parser.add_argument("--out", type=Path, default=Path("docs/images/lower_face_before_after.png"))
+    parser.add_argument("--out", type=Path, help="default: docs/images/SET_before_after.png")
     parser.add_argument("--tile", type=int, default=200)
+    parser.add_argument("--set", choices=("lower_face", "mouth"), default="lower_face")
     args = parser.parse_args()
+    poses = MOUTH_POSES if args.set == "mouth" else POSES
+    out = args.out or Path(f"docs/images/{args.set}_before_after.png")
     faces = {"before": load_face(args.before), "after": load_default_face()}
     tile, label_width, header = args.tile, 56, 18
-    sheet = Image.new("RGB", (label_width + tile * len(POSES), header + 2 * tile), (24, 24, 24))
+    sheet = Image.new("RGB", (label_width + tile * len(poses), header + 2 * tile), (24, 24, 24))
     draw = ImageDraw.Draw(sheet)
-    for column, (label, *_) in enumerate(POSES):
+    for column, (label, *_) in enumerate(poses):
         draw.text((label_width + column * tile + 4, 3), label, fill=(230, 230, 230))
     for row, (name, face) in enumerate(faces.items()):
         draw.text((4, header + row * tile + tile // 2), name, fill=(230, 230, 230))
         renderers: dict[str, FaceRenderer] = {}
         try:
-            for column, (_, region, view, values) in enumerate(POSES):
-                if region not in renderers:
+            for column, (_, region, view, values) in enumerate(poses):
+                key = f"{region} {view}"
+                if key not in renderers:
                     framing = region_framing(face, region)
-                    renderers[region] = FaceRenderer(face, tile, tile, framing=framing)
+                    if args.set == "mouth":
+                        # closer, and side views centred on the lips
+                        height = framing.height / (2.6 if region == "nose" else 1.8)
+                        x, y, z = framing.centre
+                        z += 0.45 * height if view != "front" else 0.0
+                        framing = Framing((x, y, z), height)
+                    renderers[key] = FaceRenderer(face, tile, tile, framing=framing)
                 vector = np.zeros(68)
                 for fap, value in values.items():
                     vector[fap - 1] = value
-                image = renderers[region].render(deform(face, vector), view=view)
+                image = renderers[key].render(deform(face, vector), view=view)
                 corner = (label_width + column * tile, header + row * tile)
                 sheet.paste(Image.fromarray(image), corner)
         finally:
             for renderer in renderers.values():
                 renderer.close()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    sheet.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(args.out, optimize=True)
-    print(f"wrote {args.out}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sheet.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(out, optimize=True)
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

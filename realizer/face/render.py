@@ -490,7 +490,7 @@ def surface_attributes(
                 z_lips = float(feature_at("2.3")[2])
         for indices, brightest, material in (
             (inner[0], 0.8, MATERIAL_TEETH),
-            (inner[1], 0.6, MATERIAL_MOUTH),
+            (inner[1], 0.5, MATERIAL_MOUTH),
             (inner[2], 0.4, MATERIAL_MOUTH),
         ):
             if indices is None or not len(indices):
