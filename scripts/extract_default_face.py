@@ -957,6 +957,9 @@ LIP_SIDE_CORNER = {
 }
 #: ... and on the middle's side 0 this share of that distance past the midline.
 LIP_SIDE_MIRROR_SHARE = 0.75
+#: How far forward (per unit down) the upper lip goes as it drops onto the
+#: lower one (positive 8, 9): over it, not into it.
+LIP_OVER_FORWARD: dict[tuple[str, str, int], float] = {("upper", "inner", 1): 0.3}
 
 
 def lip_side_profile(
@@ -1122,8 +1125,11 @@ def lip_side_table(
             )
         )  # fmt: skip
     axis = np.asarray(direction)[None, :]
+    over = axis + np.array([[0.0, 0.0, LIP_OVER_FORWARD.get((*which, 1), 0.0)]])
     keep = np.flatnonzero((fields[0] > 0.0) | (fields[1] > 0.0))
-    return shape_table(fap, (-1000.0, 0.0, 1000.0), [f[:, None] * axis for f in fields], keep)
+    return shape_table(
+        fap, (-1000.0, 0.0, 1000.0), [fields[0][:, None] * axis, fields[1][:, None] * over], keep
+    )
 
 
 #: The pout tables (pout_tables) fade out between these distances (metres)
