@@ -903,6 +903,105 @@ def arc_slopes(
     return [points[k + 1] - points[k] for k in range(steps)]
 
 
+#: The lids' reshaped artist shapes (lid_margin_shape, ball_slide_slopes):
+#: the widening of the upper lid (19-, 20-) and the rise of the lower lid
+#: (21+, 22+) are built out to this value (3.1 / 3.3 4.5 mm from rest, the
+#: sheet's value; eyeWide* ends at 3.6 mm, eyeSquint* at 3.1 mm), in
+#: LID_SLIDE_STEPS intervals; beyond, the last slope goes on.
+LID_SHAPE_END = 512.0
+LID_SLIDE_STEPS = 4
+#: Within this distance (x) of the eye's corners, where the two lids meet in
+#: a wedge under a millimetre wide, the reshaped lid blends back to the
+#: artist's own motion (a steeper change there folded the skin).
+LID_CORNER_M = 0.004
+#: No column of skin moves more than this share of the (scaled) shape.
+LID_FACTOR_MAX = 1.5
+#: Skin within the first distance of the eyeball's surface slides over the
+#: ball (turns about its centre), fading to the shape's own translation at
+#: the second: a lid lifted straight up stood off the ball as a ridge.
+LID_SLIDE_M = (0.008, 0.02)
+
+
+def margin_profile(
+    v: FloatArray, loop: IntArray, upper: bool
+) -> tuple[FloatArray, FloatArray, IntArray]:
+    """One lid's half of the eye opening's edge loop ``loop``, by x: the x of
+    each vertex, its height above (``upper``) or depth below the line
+    through the loop's two ends in x (the eye's corners), and its index; the
+    corners themselves (height 0) come first and last."""
+    loop = np.asarray(loop)
+    a, b = loop[np.argmin(v[loop, 0])], loop[np.argmax(v[loop, 0])]
+
+    def line(x: FloatArray) -> FloatArray:
+        out: FloatArray = v[a, 1] + (x - v[a, 0]) / (v[b, 0] - v[a, 0]) * (v[b, 1] - v[a, 1])
+        return out
+
+    height = v[loop, 1] - line(v[loop, 0])
+    pick = loop[height > 0 if upper else height < 0]
+    ids = np.concatenate([[a], pick[np.argsort(v[pick, 0])], [b]])
+    depth = np.abs(v[ids, 1] - line(v[ids, 0]))
+    depth[[0, -1]] = 0.0
+    return v[ids, 0], depth, ids
+
+
+def lid_margin_shape(
+    v: FloatArray,
+    offsets: FloatArray,
+    loop: IntArray,
+    upper: bool,
+    point: int,
+    corner_factor: float,
+) -> FloatArray:
+    """The artist's lid shape ``offsets`` (n, 3) reshaped along the eye so
+    that the margin (the loop's half on the lid's side) moves, at each x,
+    h / H of the feature point ``point``'s vertical motion, h being the
+    margin's height above (depth below) the line between the eye's corners
+    there and H that at the point: the lid's curve scales instead of
+    flattening (eyeWide* lifted the margin 3 mm to within 1 mm of the outer
+    corner, a square notch; eyeSquint*, carried past its end, lifted the
+    middle of the lower margin above its sides, a shelf across the iris).
+    Each column of skin (by x) is scaled by its margin's factor, blending
+    to ``corner_factor`` within LID_CORNER_M of the corners."""
+    xs, depth, ids = margin_profile(v, loop, upper)
+    height_at = float(np.interp(v[point, 0], xs, depth))
+    want = depth / height_at * offsets[point, 1]
+    have = offsets[ids, 1]
+    factor = np.clip(want / np.where(np.abs(have) > 1e-5, have, np.inf), 0.0, LID_FACTOR_MAX)
+    inside = rise(np.minimum(xs - xs[0], xs[-1] - xs), 0.0, LID_CORNER_M)
+    factor = corner_factor + (factor - corner_factor) * inside
+    out: FloatArray = offsets * np.interp(v[:, 0], xs, factor)[:, None]
+    return out
+
+
+def ball_slide_slopes(
+    v: FloatArray, offsets: FloatArray, centre: FloatArray, radius: float, steps: int
+) -> list[FloatArray]:
+    """The per-step displacements (steps, n, 3) of vertices taking the lid
+    shape ``offsets``: near the eyeball (LID_SLIDE_M) the vertical motion
+    becomes a turn about the horizontal axis through the ball's centre (the
+    skin slides over the ball, going back as it rises above the centre),
+    farther out the shape's own translation; x moves as the shape does."""
+    d = v - centre
+    rho = np.hypot(d[:, 1], d[:, 2])
+    start = np.arctan2(d[:, 1], d[:, 2])
+    front = d[:, 2] > 0.2 * rho
+    end = np.arcsin(np.clip((d[:, 1] + offsets[:, 1]) / np.maximum(rho, 1e-9), -0.999, 0.999))
+    turn = np.where(front, end - start, 0.0)
+    gap = np.linalg.norm(d, axis=1) - radius
+    slide = np.where(front, 1.0 - rise(gap, *LID_SLIDE_M), 0.0)[:, None]
+    points = []
+    for k in range(steps + 1):
+        t = k / steps
+        angle = start + t * turn
+        turned = v.copy()
+        turned[:, 1] = centre[1] + rho * np.sin(angle)
+        turned[:, 2] = centre[2] + rho * np.cos(angle)
+        p = v + slide * (turned - v) + (1.0 - slide) * t * offsets
+        p[:, 0] = v[:, 0] + t * offsets[:, 0]
+        points.append(p)
+    return [points[k + 1] - points[k] for k in range(steps)]
+
+
 #: Lip midpoint tables (lip_field): the band along a contour that takes the
 #: FAP's profile, and how far from its feature point the skin moves at all.
 LIP_BAND_M = 0.0026
@@ -1883,10 +1982,17 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     # ball instead of cutting a chord through it. 3.1 moves one FAPU per unit
     # (Table 7), so at 1024 it has come down one IRISD, onto 3.3, and the eye
     # is closed; the target goes on (3.1 travels 11.8 mm in all, as a closed
-    # upper lid folds over the lower one), reached at about 1340. Opening wider (negative):
-    # eyeWide*, 3.1 moving up one FAPU per unit. The lower lid (21, 22):
-    # eyeSquint*, 3.3 moving up one FAPU per unit (negative: the same path
-    # down). Choices are per FAP in this table:
+    # upper lid folds over the lower one), reached at about 1340. Opening
+    # wider (negative): eyeWide* reshaped so the lid's arch grows
+    # (lid_margin_shape) and sliding over the ball (ball_slide_slopes), 3.1
+    # moving up one FAPU per unit; the artist's shape lifted the margin as a
+    # flat plate (a square notch at the outer corner, a ridge in profile).
+    # The lower lid (21, 22): eyeSquint* reshaped the same way (so the
+    # margin stays lowest under the pupil) and sliding over the ball (the
+    # artist's lid came forward as a shelf in profile), 3.3 moving up one
+    # FAPU per unit;
+    # negative: the artist's first step back down. Choices are per FAP in
+    # this table:
     irisd_m = float(fp["3.1"][1] - fp["3.3"][1])
     fapu_irisd = irisd_m / 1024.0
     for side, fap_top, fap_bottom, blink, wide, squint, top, bottom in (
@@ -1894,6 +2000,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         ("r", 20, 22, "eyeBlinkRight", "eyeWideRight", "eyeSquintRight", "3.2", "3.4"),
     ):
         centre = v[head.part(f"eye_{side}")].mean(axis=0)
+        radius = float(np.linalg.norm(v[head.part(f"eye_{side}")] - centre, axis=1).mean())
         close = dense_offsets(targets[blink], to_head, n_all) * METRES_PER_UNIT
         widen = dense_offsets(targets[wide], to_head, n_all) * METRES_PER_UNIT
         close[eyeballs] = 0.0
@@ -1904,21 +2011,29 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         # of its way, so it moves exactly one FAPU per unit at each border.
         steps = arc_slopes(v, close, centre, BLINK_STEPS)
         drops = np.cumsum([-float(step[fp_index[top], 1]) / fapu_irisd for step in steps])
-        borders = (-1000.0, 0.0, *(float(d) for d in drops))
         widths = np.diff(np.concatenate([[0.0], drops]))
         positive = [step / (width * fapu_irisd) for step, width in zip(steps, widths, strict=True)]
-        negative = -widen / float(widen[fp_index[top], 1])
-        moved = np.flatnonzero(
-            (np.linalg.norm(close, axis=1) > 1e-5) | (np.linalg.norm(widen, axis=1) > 1e-5)
+        # The widening: 3.1 up LID_SHAPE_END FAPU at the shape's end.
+        margin_upper = np.array(
+            topo.edge_loop(fp_index[top], np.array([1.0, 0.0, 0.0]), v_dm), dtype=np.int64
         )
-        borders = tuple(round(b, 1) for b in borders)
-        deformers.append(shape_table(fap_top, borders, [negative, *positive], moved))
+        opened = widen * (LID_SHAPE_END * fapu_irisd / float(widen[fp_index[top], 1]))
+        opened = lid_margin_shape(v, opened, margin_upper, True, fp_index[top], 0.0)
+        steps = ball_slide_slopes(v, opened, centre, radius, LID_SLIDE_STEPS)
+        lifts = np.cumsum([float(step[fp_index[top], 1]) / fapu_irisd for step in steps])
+        widths = np.diff(np.concatenate([[0.0], lifts]))
+        # negative values run along -D
+        negative = [-step / (width * fapu_irisd) for step, width in zip(steps, widths, strict=True)]
+        moved = np.flatnonzero(
+            (np.linalg.norm(close, axis=1) > 1e-5) | (np.linalg.norm(opened, axis=1) > 1e-5)
+        )
+        borders = tuple(round(float(b), 1) for b in (*(-lifts[::-1]), 0.0, *drops))
+        deformers.append(shape_table(fap_top, borders, [*negative[::-1], *positive], moved))
         # The lids follow the eyeball's pitch (25, 26; positive = down): the
         # upper lid along the same blink and widen paths, its margin 3.1
         # moving LID_FOLLOW_DOWN (LID_FOLLOW_UP) of the arc the eyeball's
         # front moves, so a downward gaze does not bare the sclera above the
         # iris and an upward one does not tuck the iris under a still lid.
-        radius = float(np.linalg.norm(v[head.part(f"eye_{side}")] - centre, axis=1).mean())
         fap_pitch = 25 if side == "l" else 26
         follow_down = LID_FOLLOW_DOWN * radius  # metres of 3.1 per radian
         follow_up = LID_FOLLOW_UP * radius
@@ -1926,7 +2041,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         # i.e. `follow` AU-FAPU; the blink's borders (IRISD units) scale by
         # fapu_irisd / (follow x 1e-5)
         pitch_borders = (
-            -1000.0,
+            *(round(-float(d) * fapu_irisd / (follow_up * 1e-5), 1) for d in lifts[::-1]),
             0.0,
             *(
                 round(float(d) * fapu_irisd / (follow_down * 1e-5), 1)
@@ -1938,39 +2053,45 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
                 fap_pitch,
                 pitch_borders,
                 [
-                    negative * follow_up,
+                    *(slope * follow_up for slope in negative[::-1]),
                     *(slope * follow_down for slope in positive[:PITCH_BLINK_STEPS]),
                 ],
                 moved,
                 MIN_TABLE_MOTION * follow_up,
             )
         )
-        # The lower lid: eyeSquint* along the same kind of arc, 3.3 rising one
-        # FAPU per unit at each border (beyond the target: its last slope).
+        # The lower lid: eyeSquint*, 3.3 up LID_SHAPE_END FAPU at the end of
+        # the reshaped shape, sliding over the ball; lowering (negative) goes
+        # down the artist's first arc step back.
         lift = dense_offsets(targets[squint], to_head, n_all) * METRES_PER_UNIT
         lift[eyeballs] = 0.0
-        steps = arc_slopes(v, lift, centre, 3)
+        first = arc_slopes(v, lift, centre, 3)[0]
+        first = first / float(first[fp_index[bottom], 1])
+        margin_lower = np.array(
+            topo.edge_loop(fp_index[bottom], np.array([1.0, 0.0, 0.0]), v_dm), dtype=np.int64
+        )
+        beyond = LID_SHAPE_END * fapu_irisd / float(lift[fp_index[bottom], 1])
+        raised = lid_margin_shape(
+            v, lift * beyond, margin_lower, False, fp_index[bottom], 1 / beyond
+        )
+        steps = ball_slide_slopes(v, raised, centre, radius, LID_SLIDE_STEPS)
         rises = np.cumsum([float(step[fp_index[bottom], 1]) / fapu_irisd for step in steps])
         widths = np.diff(np.concatenate([[0.0], rises]))
         raise_ = [step / (width * fapu_irisd) for step, width in zip(steps, widths, strict=True)]
-        lifted = np.flatnonzero(np.linalg.norm(lift, axis=1) > 1e-5)
-        # Beyond the artist's squint (3.3 up 3.1 mm, about 350 units) the
-        # lid's middle goes on rising while its corners stay (the target's
-        # last slope, tapered to nothing at 3.7 and 3.11): carrying on with
-        # the whole slope folded the skin over at both corners.
-        inner, outer = ("3.11", "3.7") if side == "l" else ("3.8", "3.12")
-        taper = bump(v[:, 0], float(fp[bottom][0]), float(fp[inner][0]), float(fp[outer][0]))
+        lifted = np.flatnonzero(
+            (np.linalg.norm(lift, axis=1) > 1e-5) | (np.linalg.norm(raised, axis=1) > 1e-5)
+        )
         deformers.append(
             shape_table(
                 fap_bottom,
-                (-1000.0, 0.0, *(round(float(r), 1) for r in rises), 1000.0),
-                [raise_[0], *raise_, raise_[-1] * taper[:, None]],
+                (-1000.0, 0.0, *(round(float(r), 1) for r in rises)),
+                [first, *raise_],
                 lifted,
             )
         )
         # ... and the lower lid follows the pitch too, less (LOWER_LID_FOLLOW):
-        # up with an upward gaze along the squint's path, down with a
-        # downward one along the same path back.
+        # up with an upward gaze along the raise's path, down with a
+        # downward one along the artist's first step.
         follow_low = LOWER_LID_FOLLOW * radius
         low_borders = tuple(
             round(-float(r) * fapu_irisd / (follow_low * 1e-5), 1) for r in rises[::-1]
@@ -1979,12 +2100,7 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             shape_table(
                 fap_pitch,
                 (*low_borders, 0.0, 1000.0),
-                [
-                    -raise_[2] * follow_low,
-                    -raise_[1] * follow_low,
-                    -raise_[0] * follow_low,
-                    -raise_[0] * follow_low,
-                ],
+                [*(-slope * follow_low for slope in raise_[::-1]), -first * follow_low],
                 lifted,
                 MIN_TABLE_MOTION * follow_low,
             )
