@@ -1338,6 +1338,12 @@ BROW_BAND_BELOW_M = 0.001
 BROW_FOREHEAD_M = 0.026
 BROW_TEMPLE_M = 0.02
 BROW_LID_CLEAR_M = 0.002
+#: ... and the share of that fade below the brow that starts softly (soft_ramp).
+BROW_SOFT_FLOOR = 1.0
+#: ... beyond the eye's outer corner the fade below the brow reaches this much
+#: lower, ramping in over this distance (x) from the corner.
+BROW_OUTER_DROP_M = 0.006
+BROW_OUTER_DROP_RAMP_M = 0.008
 #: Ear tables: the half-axes (x, y, z, metres) of the ellipsoid that moves
 #: whole round the ear's feature points, and where (in its units) the
 #: motion has faded out.
@@ -1356,17 +1362,29 @@ def rise(x: FloatArray, start: float, end: float) -> FloatArray:
     return out
 
 
+def soft_ramp(t: FloatArray, soft: float) -> FloatArray:
+    """A ramp from 0 at t = 0 to 1 at t = 1 that starts as a parabola and
+    goes on as a straight line from t = ``soft`` (C1 there); ``soft`` 0 is
+    the straight ramp t."""
+    if soft <= 0.0:
+        return t
+    k = 1.0 / (1.0 - 0.5 * soft)
+    out: FloatArray = np.where(t < soft, k * t * t / (2.0 * soft), k * (t - 0.5 * soft))
+    return out
+
+
 def parabola_through(
     x: FloatArray,
     points: tuple[FloatArray, FloatArray, FloatArray],
     *,
     level: bool = True,
     reach: float = 0.004,
+    smooth: bool = False,
 ) -> FloatArray:
     """The height (y) at ``x`` of the parabola through three (x, y) points
     (ordered by x), held level beyond the outer two, or (``level`` false)
     continued along its tangent there until it has risen or fallen
-    ``reach`` metres, then level."""
+    ``reach`` metres, then level (``smooth``: easing into the level, tanh)."""
     (x0, y0), (x1, y1), (x2, y2) = ((float(p[0]), float(p[1])) for p in points)
 
     def at(xc: FloatArray) -> FloatArray:
@@ -1383,8 +1401,12 @@ def parabola_through(
         h = 1e-5
         slope0 = float((at(np.array([x0 + h])) - at(np.array([x0])))[0]) / h
         slope2 = float((at(np.array([x2])) - at(np.array([x2 - h])))[0]) / h
-        before = np.clip(np.minimum(x - x0, 0.0) * slope0, -reach, reach)
-        after = np.clip(np.maximum(x - x2, 0.0) * slope2, -reach, reach)
+        before = np.minimum(x - x0, 0.0) * slope0
+        after = np.maximum(x - x2, 0.0) * slope2
+        if smooth:  # levelling off without a kink
+            before, after = reach * np.tanh(before / reach), reach * np.tanh(after / reach)
+        else:
+            before, after = np.clip(before, -reach, reach), np.clip(after, -reach, reach)
         out = out + before + after
     return out
 
@@ -1459,15 +1481,25 @@ def brow_field(
     )
     # the upper lid's margin, continuing down a little past the eye's corners
     margin_y = parabola_through(
-        x, (in_plane(lid_in), in_plane(lid_top), in_plane(lid_out)), level=False
+        x, (in_plane(lid_in), in_plane(lid_top), in_plane(lid_out)), level=False, smooth=True
     )
     t = v[:, 1] - centre_y
     above = 1.0 - rise(t, BROW_BAND_ABOVE_M, BROW_BAND_ABOVE_M + BROW_FOREHEAD_M)
     floor = margin_y + BROW_LID_CLEAR_M
+    # beside the eye's outer corner no lid holds the skin: the fade reaches
+    # BROW_OUTER_DROP_M lower (a lowered outer brow squeezed the short span
+    # above the corner past the skin's own height there, folding it)
+    corner_x = side * lid_out[0]
+    floor -= BROW_OUTER_DROP_M * rise(x, corner_x, corner_x + BROW_OUTER_DROP_RAMP_M)
     band_low = centre_y - BROW_BAND_BELOW_M
     # linear, so that a lowered brow compresses the skin above the lid
-    # evenly (a steeper blend creased it)
-    below = np.clip((v[:, 1] - floor) / np.maximum(band_low - floor, 1e-4), 0.0, 1.0)
+    # evenly (a steeper blend creased it), but for a soft start at the floor
+    # (BROW_SOFT_FLOOR): the linear ramp's kink there creased a lit fold
+    # along the floor's line beside the eye's outer corner
+    below = soft_ramp(
+        np.clip((v[:, 1] - floor) / np.maximum(band_low - floor, 1e-4), 0.0, 1.0),
+        BROW_SOFT_FLOOR,
+    )
     across = np.where(t >= 0.0, above, below)
     # the skin of the front of the face only, fading out towards the back of
     # the head (a hard cut made a step at the temple)
