@@ -105,6 +105,16 @@ def test_disgusted_raises_the_upper_lip_and_wrinkles_the_nose(face: Face) -> Non
     assert abs(region_motion(face, table_5, "nose wings")[1]) < 0.5
 
 
+def test_disgusted_turns_the_lip_corners_down_under_the_raised_upper_lip(face: Face) -> None:
+    # AU 15 with AU 9 and 10: the corners go down while the upper lip rises;
+    # Table 5's Disgust 0 left them still, a grimace more than disgust
+    disgusted = pose(face, "disgusted")
+    assert region_motion(face, disgusted, "lip corners")[1] < -1.5
+    assert region_motion(face, disgusted, "outer upper lip")[1] > 2.0
+    table_5 = pose(face, "disgusted", additions=False)
+    assert region_motion(face, table_5, "lip corners")[1] > -0.5
+
+
 def test_guilty_raises_the_inner_brows_and_lowers_the_lip_corners(face: Face) -> None:
     guilty = pose(face, "guilty")
     assert region_motion(face, guilty, "inner brows")[1] > 2.0
