@@ -19,6 +19,10 @@ through ``BehaviourBlock.readXML`` + ``toXMLString`` after JIT warm-up
 (benchmarks/java/OpenBmlBench.java), in the same run, on the documents both
 parsers accept; goal: the ratio realizer/Java at least 1. Without a built
 reference that column is skipped with the reason.
+
+The first lines say whether the parser's hot modules run compiled (mypyc,
+``scripts/build_compiled.py``) or as Python (``REALIZER_PURE=1`` times the
+sources where the extensions are built).
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ from lxml import etree
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _timing import figure, skipped
 
+from realizer import compiled
 from realizer.bml_parser import BML_NS, parse_bml, serialise
 from realizer.bml_parser.reader import _BYTES_PARSER
 
@@ -221,6 +226,8 @@ def run(quick: bool = False) -> None:
     files = corpus_files()
     big = big_block(5000)
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+    # compiled (mypyc, scripts/build_compiled.py) or pure Python (REALIZER_PURE=1)
+    print(f"parser modules: {compiled.describe()}")
     classpath, reason = java_classpath()
     if classpath is None:
         skipped("ratio realizer/Java", reason)

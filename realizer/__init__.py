@@ -10,3 +10,9 @@ to remote viewers (:mod:`realizer.service`).
 from __future__ import annotations
 
 __version__ = "0.1.0"
+
+# Compiled modules (mypyc) run only when built from the present sources;
+# otherwise their Python sources do (realizer/compiled.py).
+from realizer import compiled as _compiled
+
+_compiled.select()

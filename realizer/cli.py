@@ -19,6 +19,7 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from realizer import __version__
 from realizer.errors import RealizerError
@@ -84,6 +85,20 @@ def _chosen(argv: Sequence[str]) -> str | None:
     return None
 
 
+class _Version(argparse.Action):
+    """``--version``: the version and whether the hot modules run compiled
+    (:mod:`realizer.compiled`), worked out only when asked (it imports them)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: object) -> None:
+        from realizer import compiled
+
+        print(f"realizer {__version__}, {compiled.describe()}")
+        parser.exit()
+
+
 def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     """The whole command line; given the ``argv`` it will parse, only the module of
     the command in it is imported (``None``: every command's module)."""
@@ -92,7 +107,9 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         prog="realizer",
         description="A real-time BML 1.0 realizer with MPEG-4 facial animation.",
     )
-    parser.add_argument("--version", action="version", version=f"realizer {__version__}")
+    parser.add_argument(
+        "--version", action=_Version, help="print the version, compiled or pure Python, and exit"
+    )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         command = name.replace("_", "-")

@@ -14,8 +14,10 @@ cd "$(dirname "$0")/.."
 # video output, eSpeak NG (library and voices) for speech, Chromium and its
 # driver for the browser viewer's end-to-end test, Node and its ws package for
 # the JavaScript client's tests, nats-server for the cluster's tests (realizer
-# worker/gateway), activemq (and its Java) for the STOMP bridge's tests.
+# worker/gateway), activemq (and its Java) for the STOMP bridge's tests, a C
+# compiler and Python's headers for the compiled modules (mypyc).
 APT_PACKAGES=(
+    gcc libc6-dev python3-dev
     libosmesa6 libgl1 libegl1 libgl1-mesa-dri libglu1-mesa
     ffmpeg
     libespeak-ng1 espeak-ng-data
@@ -52,6 +54,10 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q -e '.[dev,all]'
+# The hot modules (realizer/compiled.py) compiled by mypyc, in place; without
+# a compiler they run as Python. Run again after editing them: until then
+# the edited sources run (realizer --version says which).
+.venv/bin/python scripts/build_compiled.py
 # three.js for the browser viewer, from npm into a gitignored folder
 bash scripts/vendor_three.sh
 # Piper (GPL, in a virtual environment of its own) and a voice from PyPI into

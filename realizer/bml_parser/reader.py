@@ -39,7 +39,6 @@ from __future__ import annotations
 import gc
 import itertools
 import re
-from dataclasses import dataclass
 from typing import Any
 
 from lxml import etree
@@ -53,7 +52,13 @@ from realizer.bml_parser.errors import (
     WarningType,
 )
 from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement, builder
-from realizer.bml_parser.syncref import MAX_ITERATION, SyncRef, fast_sync_ref, parse_sync_ref
+
+# the result and the limits are plain Python classes (pickled between the
+# service's processes), defined outside this module, which may be compiled
+from realizer.bml_parser.result import DEFAULT_LIMITS as DEFAULT_LIMITS
+from realizer.bml_parser.result import Limits as Limits
+from realizer.bml_parser.result import ParseResult as ParseResult
+from realizer.bml_parser.syncref import SyncRef, fast_sync_ref, parse_sync_ref
 from realizer.bml_parser.tree import (
     NO_CONTROL,
     Behaviour,
@@ -94,52 +99,6 @@ _COLUMN_WINDOW = 1 << 16
 
 #: The XML namespace's language attribute (BML 1.0 speech language).
 _XML_LANG = "{http://www.w3.org/XML/1998/namespace}lang"
-
-
-@dataclass(frozen=True, slots=True)
-class Limits:
-    """Named limits on one BML document; over one, the block is refused.
-
-    ``max_bytes``: the document's size in bytes. ``max_behaviours``:
-    behaviours in the block. ``max_depth``: element nesting.
-    ``max_attributes``: attributes on one element. ``max_sync_refs``: sync
-    references inside one behaviour's text or one constraint relation.
-    ``max_repetition``: strokes of one repeated behaviour (``repetition``,
-    the draft's ``repeats``). ``max_number``: the magnitude of a numeric
-    attribute (times and offsets have their own bound,
-    :data:`~realizer.bml_parser.syncref.MAX_SECONDS`). ``max_warnings``:
-    distinct warnings reported for one block; warnings of one type about one
-    target are one warning that counts them, and what is over this limit is
-    counted in a last warning. ``max_speech_chars``: characters of text in
-    one speech behaviour (what the speech synthesiser is given).
-    """
-
-    max_bytes: int = 4 * 1024 * 1024
-    max_behaviours: int = 20_000
-    max_depth: int = 64
-    max_attributes: int = 128
-    max_sync_refs: int = 1024
-    max_repetition: int = MAX_ITERATION
-    max_number: float = 1e6
-    max_warnings: int = 64
-    max_speech_chars: int = 10_000
-
-
-DEFAULT_LIMITS = Limits()
-
-
-@dataclass(frozen=True, slots=True)
-class ParseResult:
-    """A parsed block with what the parser had to say about it.
-
-    ``dropped`` names behaviours that stay in the tree (so the document
-    serialises back) but that the realizer must not run, each with a warning
-    saying why (an impossible timing, as the BML 1.0 standard asks).
-    """
-
-    block: Block
-    warnings: tuple[BmlWarning, ...] = ()
-    dropped: frozenset[str] = frozenset()
 
 
 def _make_parser(encoding: str | None) -> etree.XMLParser:
@@ -459,12 +418,9 @@ class _Reader:
         )
         prolog: tuple[Node, ...] = ()
         if root.getprevious() is not None:
-            prolog = tuple(
-                [
-                    self.other(sibling, {}, 0)
-                    for sibling in reversed(list(root.itersiblings(preceding=True)))
-                ]
-            )
+            preceding: list[Any] = list(root.itersiblings(preceding=True))
+            preceding.reverse()
+            prolog = tuple([self.other(sibling, {}, 0) for sibling in preceding])
         epilog: tuple[Node, ...] = ()
         if root.getnext() is not None:
             epilog = tuple([self.other(sibling, {}, 0) for sibling in root.itersiblings()])
