@@ -45,6 +45,7 @@ from types import ModuleType
 #: The modules compiled by ``scripts/build_compiled.py``, by import name.
 MODULES: tuple[str, ...] = (
     "realizer.bml_parser.reader",
+    "realizer.bml_parser.syncref",
     "realizer.bml_parser.writer",
 )
 

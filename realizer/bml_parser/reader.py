@@ -39,7 +39,7 @@ from __future__ import annotations
 import gc
 import itertools
 import re
-from typing import Any
+from typing import Any, Final
 
 from lxml import etree
 
@@ -80,25 +80,25 @@ from realizer.bml_parser.vocabulary import (
     vocabulary,
 )
 
-COMPOSITIONS = ("MERGE", "APPEND", "REPLACE")
-_BMLA_PREFIX = "{" + BMLA_NS + "}"
-_RELATION_KINDS = ("synchronize", "before", "after")
-_CHECKED_TYPES = frozenset({"fap", "emotion", "head"})
+COMPOSITIONS: Final = ("MERGE", "APPEND", "REPLACE")
+_BMLA_PREFIX: Final = "{" + BMLA_NS + "}"
+_RELATION_KINDS: Final = ("synchronize", "before", "after")
+_CHECKED_TYPES: Final = frozenset({"fap", "emotion", "head"})
 # Clark-name prefixes ("{ns" before the "}") of the namespaces whose
 # <description> and <text> children the grammar reads.
-_CORE_PREFIXES = frozenset({"{" + BML_NS, "{" + DRAFT_NS, ""})
+_CORE_PREFIXES: Final = frozenset({"{" + BML_NS, "{" + DRAFT_NS, ""})
 # A FAP value of a <fap values="3=120 19:-80"> pair: deterministic (the sign,
 # the digits, the point and the exponent each start with a character the
 # part before cannot match), so matching is linear in the pair's length.
-_FAP_NUMBER_RE = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_FAP_NUMBER_RE: Final = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 #: Warnings of one type about one target listed one by one; the rest are counted.
-_REPEATS_LISTED = 4
+_REPEATS_LISTED: Final = 4
 #: Beyond this many characters a line's column is not looked for (0: unknown).
-_COLUMN_WINDOW = 1 << 16
+_COLUMN_WINDOW: Final = 1 << 16
 
 
 #: The XML namespace's language attribute (BML 1.0 speech language).
-_XML_LANG = "{http://www.w3.org/XML/1998/namespace}lang"
+_XML_LANG: Final = "{http://www.w3.org/XML/1998/namespace}lang"
 
 
 def _make_parser(encoding: str | None) -> etree.XMLParser:
@@ -115,8 +115,8 @@ def _make_parser(encoding: str | None) -> etree.XMLParser:
     )
 
 
-_BYTES_PARSER = _make_parser(None)
-_TEXT_PARSER = _make_parser("utf-8")  # str input is encoded as UTF-8 whatever it declares
+_BYTES_PARSER: Final = _make_parser(None)
+_TEXT_PARSER: Final = _make_parser("utf-8")  # str input is encoded as UTF-8 whatever it declares
 
 
 def _number_within(text: str, limit: float) -> bool:
@@ -1051,7 +1051,7 @@ class _Reader:
         return _new_relation(*fields, kind, ref, tuple(syncs))
 
 
-_XML_SPACE = b" \t\r\n"
+_XML_SPACE: Final = b" \t\r\n"
 
 
 def _has_doctype(raw: bytes) -> bool:
@@ -1083,25 +1083,25 @@ def _has_doctype(raw: bytes) -> bool:
     return False
 
 
-_DOCTYPE_MESSAGE = (
+_DOCTYPE_MESSAGE: Final = (
     "DOCTYPE declarations are not allowed in BML (entity expansion and external DTDs are refused)"
 )
 
 
 # Positional constructors that set slots directly (nodes.builder): building
 # the nodes is most of what parsing costs.
-_new_element = builder(XmlElement)
-_new_behaviour = builder(Behaviour)
-_new_description = builder(Description)
-_new_text_sync = builder(TextSync)
-_new_speech_text = builder(SpeechText)
-_new_constraint = builder(Constraint)
-_new_relation = builder(Relation)
-_new_required = builder(Required)
-_new_block = builder(Block, every_field=True)
-_new_comment = builder(Comment)
-_new_pi = builder(ProcessingInstruction)
-_new_result = builder(ParseResult)
+_new_element: Final = builder(XmlElement)
+_new_behaviour: Final = builder(Behaviour)
+_new_description: Final = builder(Description)
+_new_text_sync: Final = builder(TextSync)
+_new_speech_text: Final = builder(SpeechText)
+_new_constraint: Final = builder(Constraint)
+_new_relation: Final = builder(Relation)
+_new_required: Final = builder(Required)
+_new_block: Final = builder(Block, every_field=True)
+_new_comment: Final = builder(Comment)
+_new_pi: Final = builder(ProcessingInstruction)
+_new_result: Final = builder(ParseResult)
 
 
 def _split_tag(tag: str) -> tuple[str, str]:
@@ -1121,7 +1121,7 @@ def _specs_by_tag() -> dict[str, BehaviourSpec]:
     }
 
 
-_SPECS_BY_TAG = _specs_by_tag()
+_SPECS_BY_TAG: Final = _specs_by_tag()
 
 
 def _attribute_kinds(spec: BehaviourSpec) -> dict[str, str | bool]:
@@ -1135,10 +1135,10 @@ def _attribute_kinds(spec: BehaviourSpec) -> dict[str, str | bool]:
 
 # by the spec's identity (the vocabulary is loaded once; a spec holds a dict
 # and is not hashable)
-_ATTRIBUTE_KINDS = {id(spec): _attribute_kinds(spec) for spec in _SPECS_BY_TAG.values()}
+_ATTRIBUTE_KINDS: Final = {id(spec): _attribute_kinds(spec) for spec in _SPECS_BY_TAG.values()}
 
 
-_NOTHING_DROPPED: frozenset[str] = frozenset()
+_NOTHING_DROPPED: Final[frozenset[str]] = frozenset()
 _UTF8_NAMES = frozenset({"UTF-8", "UTF8", "US-ASCII", "ASCII"})
 
 

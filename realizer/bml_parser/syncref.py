@@ -29,65 +29,34 @@ characters are memoised, so the cache holds a bounded amount of text.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Final
 
 from realizer.bml_parser.errors import SyncRefError
 from realizer.bml_parser.nodes import builder
 
+# a plain Python class (pickled, compared, replaced), outside this module,
+# which may be compiled (realizer/compiled.py)
+from realizer.bml_parser.refs import SyncRef as SyncRef
+
 #: The largest magnitude of a time or an offset, seconds (one hour). Beyond
 #: it a block would not end within any session a person watches, and the
 #: frame arithmetic downstream loses precision or overflows.
-MAX_SECONDS = 3600.0
+MAX_SECONDS: Final = 3600.0
 #: The largest stroke iteration a reference may name (``nod1:stroke:N``);
 #: the same bound as the parser's ``Limits.max_repetition`` default.
-MAX_ITERATION = 32
+MAX_ITERATION: Final = 32
 
 # Deterministic: each alternative starts with a different character class,
 # and every quantified part is followed by a character it cannot match.
-_NUMBER = r"[0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?|\.[0-9]+(?:[eE][+-]?[0-9]+)?"
-_UNSIGNED_RE = re.compile(_NUMBER)
-_SIGNED_RE = re.compile(rf"[+-]?(?:{_NUMBER})")
-_NAME_RE = re.compile(r"[A-Za-z_][\w.\-]*")
-_CACHED_CHARS = 256
+_NUMBER: Final = r"[0-9]+(?:\.[0-9]*)?(?:[eE][+-]?[0-9]+)?|\.[0-9]+(?:[eE][+-]?[0-9]+)?"
+_UNSIGNED_RE: Final = re.compile(_NUMBER)
+_SIGNED_RE: Final = re.compile(rf"[+-]?(?:{_NUMBER})")
+_NAME_RE: Final = re.compile(r"[A-Za-z_][\w.\-]*")
+_CACHED_CHARS: Final = 256
 
 
-@dataclass(frozen=True, slots=True)
-class SyncRef:
-    """A parsed sync reference; ``raw`` is the text as written.
-
-    Exactly one of two shapes:
-
-    * a time: ``behaviour is None`` and ``offset`` is seconds from the block start;
-    * a sync point: ``behaviour`` and ``sync`` set (``block`` when it names
-      another block, ``iteration`` for ``stroke:N``), ``offset`` in seconds.
-
-    ``bml:start`` is the sync point ``("bml", "start")`` of the current block.
-    """
-
-    raw: str = field(compare=False)
-    behaviour: str | None
-    sync: str | None
-    block: str | None = None
-    iteration: int | None = None
-    offset: float = 0.0
-
-    @property
-    def is_time(self) -> bool:
-        """True for a bare number: a time relative to the block start."""
-        return self.behaviour is None
-
-    @property
-    def sync_name(self) -> str:
-        """The sync point's name as the behaviour lists it (``stroke:2`` for iterations)."""
-        assert self.sync is not None
-        return self.sync if self.iteration is None else f"{self.sync}:{self.iteration}"
-
-    def __str__(self) -> str:
-        return self.raw
-
-
-_new_ref = builder(SyncRef)
+_new_ref: Final = builder(SyncRef)
 
 
 def _seconds(text: str, raw: str, what: str) -> float:

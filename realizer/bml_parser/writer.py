@@ -18,19 +18,20 @@ the tree again, the way an editor saves an unmodified file unchanged.
 from __future__ import annotations
 
 import re
+from typing import Final
 
 from realizer.bml_parser.nodes import Comment, Node, ProcessingInstruction, XmlElement
 from realizer.bml_parser.tree import Block
 
-XML_NS = "http://www.w3.org/XML/1998/namespace"
+XML_NS: Final = "http://www.w3.org/XML/1998/namespace"
 
-_TEXT_ESCAPES = str.maketrans({"&": "&amp;", "<": "&lt;", ">": "&gt;", "\r": "&#13;"})
-_ATTR_ESCAPES = str.maketrans(
+_TEXT_ESCAPES: Final = str.maketrans({"&": "&amp;", "<": "&lt;", ">": "&gt;", "\r": "&#13;"})
+_ATTR_ESCAPES: Final = str.maketrans(
     {"&": "&amp;", "<": "&lt;", '"': "&quot;", "\t": "&#9;", "\n": "&#10;", "\r": "&#13;"}
 )
 # Most values need no escaping; finding that out is cheaper than translating.
-_TEXT_SPECIAL = re.compile("[&<>\r]").search
-_ATTR_SPECIAL = re.compile('[&<"\t\n\r]').search
+_TEXT_SPECIAL: Final = re.compile("[&<>\r]").search
+_ATTR_SPECIAL: Final = re.compile('[&<"\t\n\r]').search
 
 
 def _text(value: str) -> str:
