@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -33,6 +34,9 @@ def build(output: Path) -> list[str]:
     import pdoc.render
 
     sys.path.insert(0, str(ROOT))
+    # from the sources, whatever is compiled: pdoc reads signatures and
+    # annotations of Python functions (realizer/compiled.py)
+    os.environ["REALIZER_PURE"] = "1"
     resolve_lazy_exports("realizer.face")
     pdoc.render.configure(docformat="restructuredtext", show_source=False)
     with warnings.catch_warnings(record=True) as caught:
