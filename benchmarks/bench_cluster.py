@@ -1,6 +1,11 @@
 """Load benchmark of the cluster (workers and gateways over NATS), on loopback only.
 
-In one run, for each load (characters x viewers: 10 x 100 and 50 x 200),
+First the bytes a viewer of a resting face receives per tick, in each
+format (FAPs, int16 deltas, float32 vertices), from ``realizer serve`` and
+through a gateway (1 worker, 1 gateway): a ``same`` of a few bytes from
+both (cluster protocol 2; version 1 sent whole frames).
+
+Then, in one run, for each load (characters x viewers: 10 x 100 and 50 x 200),
 side by side, one after the other (a fresh cluster started before and idle
 while the one process is measured):
 
@@ -218,6 +223,32 @@ def run_serve_load(
         bench_service.stop_server(process)
 
 
+def run_idle(seconds: float) -> None:
+    """Bytes a viewer of a resting face receives per tick, per format, from
+    ``realizer serve`` and through a gateway (a ``same`` of a few bytes
+    from both: the goal is that the gateway sends what serve sends)."""
+    from realizer.service.cluster.local import LocalCluster
+
+    process, port = bench_service.start_server(FPS, [])
+    try:
+        with LocalCluster() as cluster:
+            _, (gateway,) = cluster.start(workers=1, gateways=1)
+            for name, vertices in bench_service.VIEWER_FORMATS.items():
+                _, serve_tick = asyncio.run(bench_service.idle_bytes(port, vertices, seconds))
+                _, gateway_tick = asyncio.run(
+                    bench_service.idle_bytes(gateway.port, vertices, seconds)
+                )
+                figure(
+                    f"idle face, {name} viewer: bytes per tick through a gateway",
+                    gateway_tick,
+                    "bytes",
+                    goal=bench_service.IDLE_GOAL_BYTES,
+                    note=f"realizer serve: {serve_tick:.1f}",
+                )
+    finally:
+        bench_service.stop_server(process)
+
+
 def cpu_per_frame(seconds: float, frames: int) -> float:
     """Microseconds of CPU per viewer frame (or same) delivered."""
     return 1e6 * seconds / max(1, frames)
@@ -287,6 +318,7 @@ def run(
         "1 nats-server, 2 workers, 2 gateways (viewers on both, submitter on one); "
         f"load average {os.getloadavg()[0]:.2f} at the start"
     )
+    run_idle(1.0 if quick else 2.0)
     runs: list[tuple[tuple[int, int], Any, dict[str, Any], float]] = []
     serve_extra: list[tuple[float, float]] = []  # (CPU seconds, bytes per message)
     limits = ["--limit", "characters=256", "--limit", "viewers_per_character=256"]

@@ -573,22 +573,26 @@ class ClusterGateway(RealizerService):
         (RealizerService._deliver_frame): a ``same`` to one that asked for
         them and already has this content, the whole frame to the others;
         on a coded tick sent whole (the coder coded) every viewer gets it.
-        Each message's WebSocket bytes are built once for all viewers."""
+        Each message's WebSocket bytes are built once for all viewers (the
+        viewers of one key share their options, so ``coded`` is the key's)."""
+        content = tick.content
         same: tuple[bytes, bytes] | None = None
         whole: tuple[bytes, bytes] | None = None
+        coded = False
         if tick.frame is not None:
             whole = (tick.frame, binary_frame(tick.frame))
         for viewer in viewers:
-            coded = viewer.options.coded
-            if viewer.same and viewer.version == tick.content and not (coded and whole):
-                if same is None:
-                    data = codec.same_message(tick.number)
-                    same = (data, binary_frame(data))
-                viewer.offer_same(same[0], WRITE_LIMIT, same[1])
-                continue
+            if viewer.version == content and viewer.same:
+                coded = viewer.options.coded
+                if not (coded and whole):
+                    if same is None:
+                        data = codec.same_message(tick.number)
+                        same = (data, binary_frame(data))
+                    viewer.offer_same(same[0], WRITE_LIMIT, same[1])
+                    continue
             if whole is None:
                 last = self._whole.get(key)
-                if coded or last is None or last.content != tick.content:
+                if viewer.options.coded or last is None or last.content != content:
                     # This content never reached this gateway whole (a NATS
                     # message lost, or it joined the stream on a same):
                     # nothing rather than a stale picture; the next whole
@@ -599,7 +603,7 @@ class ClusterGateway(RealizerService):
                 whole = (data, binary_frame(data))
                 self.frames_restamped += 1
             viewer.offer(whole[0], WRITE_LIMIT, whole[1])
-            viewer.version = tick.content
+            viewer.version = content
 
     def _wants(self) -> tuple[dict[str, set[ViewOptions]], dict[str, set[ViewOptions]]]:
         """The formats this gateway's viewers want per character, and those
