@@ -121,6 +121,7 @@ async def _measure(viewers: int, rounds: int) -> dict[str, tuple[float, float]]:
             number += 1
             for character_tick in stage.tick(number / 60):
                 service._deliver_frame(number, character_tick)
+            service._write_offers_at_once()
 
         fan_out()  # warm up (encoders made)
         options = every[0].options

@@ -181,6 +181,13 @@ class ClockStats:
     #: socket, or put in its mailbox when the socket is full), seconds: the
     #: service's own part of a frame's delay
     recent_written: deque[float] = field(default_factory=lambda: deque(maxlen=3600))
+    #: times the clock gave the event loop back in the middle of a fan-out
+    given_back: int = 0
+    #: character frames sent after a second try in the same tick (a
+    #: submission held the character's lock at the first), and those not
+    #: sent at all (the lock still held at :data:`GIVE_BACK_SHARE` of a period)
+    busy_retried: int = 0
+    busy_missed: int = 0
 
     def tick_began(self, at: float) -> None:
         """Record that a tick began at ``at`` (loop seconds)."""
@@ -210,6 +217,9 @@ class ClockStats:
             "written_p99_seconds": share(0.99, written),
             "max_frame_gap_seconds": self.max_frame_gap_seconds,
             "recent_max_frame_gap_seconds": max(self.recent_frame_gaps, default=0.0),
+            "given_back": self.given_back,
+            "busy_retried": self.busy_retried,
+            "busy_missed": self.busy_missed,
         }
 
 
@@ -262,6 +272,9 @@ class Viewer:
     #: -1: none yet for this subscription
     version: int = -1
     latest_same: bool = False  # the mailbox holds a `same`, not a frame
+    #: counts the subscribe messages applied: an offer the clock queued for
+    #: an earlier subscription is dropped (its frame must not follow the new mesh)
+    subscription: int = 0
 
     def offer_audio(self, message: bytes, backlog: int) -> None:
         """Queue an audio chunk (never replaced like frames: audio must be whole);
@@ -333,6 +346,50 @@ class Viewer:
 EPOLL_GRANULARITY = 0.001
 
 
+#: Seconds of writing frames to viewers after which the clock gives the
+#: event loop back (:meth:`RealizerService._write_offers`): a submission that
+#: arrives while a tick fans out 1,000 frames (several milliseconds) is read,
+#: handed to a planner thread and answered between two slices instead of
+#: after the whole fan-out.
+FAN_OUT_SLICE = 0.0005
+
+#: Share of a frame period, from the frame's due time, in which the clock
+#: gives the loop back between slices and tries again a character whose lock
+#: a submission held; past it, what is left of the tick is written at once,
+#: so whatever else the loop has to do never costs a frame.
+GIVE_BACK_SHARE = 0.5
+
+#: Seconds between two tries of a character whose lock a submission holds
+#: (admitting or committing a block, a few milliseconds at most).
+BUSY_RETRY_SECONDS = 0.0005
+
+
+#: One offer the clock queued: the viewer, its subscription then
+#: (:attr:`Viewer.subscription`), the payload, its WebSocket bytes and the
+#: content version (-1: a ``same`` message).
+_Offer = tuple["Viewer", int, bytes, bytes, int]
+
+
+def _make_offer(offer: _Offer) -> None:
+    """Offer a queued frame or ``same`` to its viewer, unless the viewer has
+    subscribed again since (that frame must not follow the new mesh)."""
+    viewer, subscription, data, wire, version = offer
+    if viewer.subscription != subscription:
+        return
+    if version < 0:
+        viewer.offer_same(data, WRITE_LIMIT, wire)
+    else:
+        viewer.offer(data, WRITE_LIMIT, wire)
+
+
+def _loop_has_work(loop: asyncio.AbstractEventLoop) -> bool:
+    """Whether callbacks other than the caller's wait on ``loop``'s ready
+    queue (CPython's ``BaseEventLoop._ready``; a loop without one reads as
+    idle, so the clock gives it back one round per slice)."""
+    ready = getattr(loop, "_ready", None)
+    return bool(ready)
+
+
 async def _wait_until(loop: asyncio.AbstractEventLoop, due: float) -> None:
     """Return at the loop time ``due`` (never before it), within tens of
     microseconds when the machine is not busy.
@@ -395,6 +452,14 @@ class RealizerService:
         self._start = 0.0  # loop time of frame 0
         self._frame = 0  # number of the next frame
         self._scene_version = -1  # the scene version the viewers were last sent
+        # This tick's offers, written by _write_offers in slices: (viewer, its
+        # subscription then, payload, WebSocket bytes, content version; -1
+        # for a `same`). Frames go first, `same` messages after them: a
+        # viewer whose face changed is not kept waiting by those whose face
+        # did not.
+        self._frame_offers: list[_Offer] = []
+        self._same_offers: list[_Offer] = []
+        self._given_back_seconds = 0.0  # in the current tick
         self._stopping = False
         self._static = _StaticFiles()
         # The clock never waits for a submitter: each message is handled on
@@ -552,11 +617,14 @@ class RealizerService:
             self.stats.max_lateness_seconds = max(self.stats.max_lateness_seconds, begun - due)
             self.stats.recent_lateness.append(begun - due)
             started = time.perf_counter()
+            self._given_back_seconds = 0.0
             try:
-                self._tick(self._frame, self._frame / fps)
+                await self._clock_tick(
+                    loop, self._frame, self._frame / fps, due + GIVE_BACK_SHARE / fps
+                )
             except Exception:  # a bug in a session must not stop every character
                 logger.exception("tick %d failed", self._frame)
-            spent = time.perf_counter() - started
+            spent = time.perf_counter() - started - self._given_back_seconds
             self.stats.recent_written.append(loop.time() - due)
             self.stats.last_tick_seconds = spent
             self.stats.max_tick_seconds = max(self.stats.max_tick_seconds, spent)
@@ -578,16 +646,100 @@ class RealizerService:
             self.encoders.pop(character_id, None)
             self.viewers.pop(character_id, None)
 
+    async def _clock_tick(
+        self, loop: asyncio.AbstractEventLoop, number: int, now: float, until: float
+    ) -> None:
+        """One tick: every session advanced, its feedback dispatched and its
+        frame written to its viewers, in slices (:meth:`_write_offers`).
+
+        No submitter waits behind the clock: between slices the event loop
+        runs what waits for it (a submission read and handed to a planner
+        thread, an ``accepted`` sent). No viewer waits behind a submitter: a
+        character whose lock a submission holds (a block being admitted or
+        committed, for a few milliseconds) is tried again every
+        :data:`BUSY_RETRY_SECONDS`, so its frame goes out late in this
+        period instead of not at all. Both end at ``until`` (loop time): the
+        rest of the frames are then written at once, a busy character's
+        frame skipped.
+        """
+        self._frame_offers.clear()
+        self._same_offers.clear()
+        self._tick(number, now)
+        await self._write_offers(loop, until)
+        busy = self.stage.busy
+        while busy:
+            if loop.time() + BUSY_RETRY_SECONDS >= until:
+                self.stats.busy_missed += len(busy)
+                return
+            began = time.perf_counter()
+            await asyncio.sleep(BUSY_RETRY_SECONDS)
+            self._given_back_seconds += time.perf_counter() - began
+            retried = self.stage.tick(now, only=busy)
+            busy = self.stage.busy
+            self.stats.busy_retried += len(retried)
+            for character_tick in retried:
+                if character_tick.messages:
+                    self._dispatch(character_tick.messages)
+                self._deliver_frame(number, character_tick)
+            await self._write_offers(loop, until)
+
     def _tick(self, number: int, now: float) -> None:
+        """Advance every session, dispatch its feedback and queue its frame
+        (:meth:`_deliver_frame`; :meth:`_write_offers` writes them)."""
         for character_tick in self.stage.tick(now):
             if character_tick.messages:
                 self._dispatch(character_tick.messages)
             self._deliver_frame(number, character_tick)
         self._scene_changed()
 
+    def _queued_offers(self) -> list[_Offer]:
+        """The offers this tick queued (frames first, then ``same``
+        messages); the queues are emptied."""
+        offers = self._frame_offers
+        offers.extend(self._same_offers)
+        self._frame_offers, self._same_offers = [], []
+        return offers
+
+    async def _write_offers(self, loop: asyncio.AbstractEventLoop, until: float) -> None:
+        """Offer the queued frames, then the queued ``same`` messages, to
+        their viewers (:func:`_make_offer`); every :data:`FAN_OUT_SLICE`
+        seconds of it, until the loop time ``until``, give the event loop
+        back (:meth:`_yield_to_loop`)."""
+        offers = self._queued_offers()
+        clock = time.perf_counter
+        slice_end = clock() + FAN_OUT_SLICE
+        last = len(offers) - 1
+        for index, offer in enumerate(offers):
+            _make_offer(offer)
+            if index < last and clock() >= slice_end and loop.time() < until:
+                await self._yield_to_loop(loop, until)
+                slice_end = clock() + FAN_OUT_SLICE
+
+    def _write_offers_at_once(self) -> None:
+        """Offer everything queued, without giving the loop back (``realizer
+        bench fanout`` times a whole fan-out this way)."""
+        for offer in self._queued_offers():
+            _make_offer(offer)
+
+    async def _yield_to_loop(self, loop: asyncio.AbstractEventLoop, until: float) -> None:
+        """Let the event loop run what waits for it, then come back.
+
+        One round (``asyncio.sleep(0)``) polls the sockets and runs what was
+        ready; a callback it runs often makes the next one ready (a message
+        read wakes its handler, whose answer wakes a sender), so rounds go
+        on while other callbacks wait, until the loop time ``until``.
+        """
+        began = time.perf_counter()
+        self.stats.given_back += 1
+        await asyncio.sleep(0)
+        while _loop_has_work(loop) and loop.time() < until:
+            await asyncio.sleep(0)
+        self._given_back_seconds += time.perf_counter() - began
+
     def _deliver_frame(self, number: int, character_tick: CharacterTick) -> None:
-        """Hook: encode one character's frame once per format and offer it,
-        with its audio, to its viewers (a cluster worker publishes it instead).
+        """Hook: encode one character's frame once per format and queue it
+        for its viewers (:meth:`_write_offers` offers them, in slices), its
+        audio offered at once (a cluster worker publishes the frame instead).
 
         Nothing to say, nearly nothing sent: a viewer that asked for ``same``
         messages and already has this tick's content (its FAPs, so its
@@ -613,9 +765,10 @@ class RealizerService:
             same = codec.same_message(number)
             same_wire = binary_frame(same)
             chosen = set(stale)
+            sames = self._same_offers
             for viewer in viewers:
                 if viewer not in chosen:
-                    viewer.offer_same(same, WRITE_LIMIT, same_wire)
+                    sames.append((viewer, viewer.subscription, same, same_wire, -1))
         if stale:
             encoded = encoder.encode(
                 number, character_tick.time, character_tick.frame, (v.options for v in stale)
@@ -624,10 +777,11 @@ class RealizerService:
             # as they are), with the payload: one look-up per viewer (hashing
             # a ViewOptions costs a third of a microsecond)
             wires = {options: (data, binary_frame(data)) for options, data in encoded.items()}
+            frames = self._frame_offers
             for viewer in stale:
                 found = wires.get(viewer.options)  # none for ARKit viewers until its fit is set up
                 if found is not None:
-                    viewer.offer(found[0], WRITE_LIMIT, found[1])
+                    frames.append((viewer, viewer.subscription, found[0], found[1], version))
                     viewer.version = version
 
     def _send_audio(self, character: str, now: float, viewers: Iterable[Viewer]) -> None:
@@ -1012,6 +1166,7 @@ class RealizerService:
             return
         self.viewers.get(viewer.character, set()).discard(viewer)
         self._viewers_changed(viewer.character)
+        viewer.subscription += 1  # what the clock queued for the old one is dropped
         viewer.character, viewer.options = character, options
         if "audio" in request:
             viewer.audio = request["audio"] == "pcm16"

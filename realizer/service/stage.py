@@ -258,7 +258,11 @@ class Stage:
         self.now = 0.0  # the latest time given to any session, seconds
         # guards the character table and ``now`` (planner threads and the clock)
         self._table = threading.Lock()
-        self.skipped_ticks = 0  # character ticks skipped while a block was planned
+        #: character ticks that found the character's lock held (a block
+        #: being admitted or committed, an interrupt)
+        self.skipped_ticks = 0
+        #: the characters the last :meth:`tick` left out, their lock held
+        self.busy: list[str] = []
         self._parse_limits = Limits(
             max_bytes=limits.message_bytes, max_behaviours=limits.behaviours_per_block
         )
@@ -566,18 +570,31 @@ class Stage:
 
     # -- the clock --------------------------------------------------------------
 
-    def tick(self, now: float) -> list[CharacterTick]:
-        """Advance every session to ``now`` seconds; one entry per character."""
+    def tick(self, now: float, only: Iterable[str] | None = None) -> list[CharacterTick]:
+        """Advance every session (``only``: those of these character ids) to
+        ``now`` seconds; one entry per character ticked.
+
+        A character whose lock a submission holds at that moment is not
+        waited for: it is left out, and :attr:`busy` names it afterwards (the
+        characters the last call left out), so the caller may try it again
+        a little later in the same frame (the server's clock does).
+        """
         now = self._advance(now)
         ticks: list[CharacterTick] = []
-        for found in list(self.characters.values()):
+        busy: list[str] = []
+        if only is None:
+            chosen = list(self.characters.values())
+        else:
+            chosen = [c for c in map(self.characters.get, only) if c is not None]
+        for found in chosen:
             # The clock never waits for a submitter: a block is planned with
             # its character's lock free (Session.plan_bml), so the lock is
             # held only briefly (a block admitted or committed, an
-            # interrupt); a character caught in that moment skips this tick
-            # (its frame comes at the next one).
+            # interrupt); a character caught in that moment is left out of
+            # this call.
             if not found.lock.acquire(blocking=False):
                 self.skipped_ticks += 1
+                busy.append(found.id)
                 continue
             try:
                 tick = self._tick_character(found, now)
@@ -585,6 +602,7 @@ class Stage:
                 found.lock.release()
             if tick is not None:
                 ticks.append(tick)
+        self.busy = busy
         return ticks
 
     def _tick_character(self, found: Character, now: float) -> CharacterTick | None:

@@ -4,14 +4,28 @@ A real service (real sessions, the real face) with a real WebSocket viewer
 and submitter: the block (the per-block limit, 256 behaviours tied to each
 other) is parsed and planned off the event loop, so the viewer must keep
 getting a message every tick (a frame or a ``same``) while the block is
-parsed, planned and accepted: no gap over 50 ms is asserted, and a gap over
-the 25 ms goal is printed. Timing is judged only
-when the machine is not overloaded (load average at most the CPU count).
+parsed, planned and accepted: no gap over 25 ms (one frame period and a
+half) is asserted. Timing is judged only when the machine is not
+overloaded (load average at most the CPU count).
+
+Two causes made the goal miss about one run in ten (29 to 31 ms), both
+found with per-tick timestamps and the collector's callbacks:
+
+* the character's lock, held by the planner thread to admit and commit the
+  block (a few milliseconds), made the tick that met it skip the character:
+  a gap of two frame periods. The clock now tries it again within the period
+  (tests/service/test_fan_out_slices.py);
+* a full garbage collection, started by the planner's allocations, walked
+  this test process's heap (pytest and every module the suite imported) for
+  25 to 100 ms with the interpreter lock held. ``realizer serve`` leaves its
+  start-up heap out of later collections (``freeze_start_up_heap``); the
+  test does the same, so it measures what a serving process does.
 """
 
 from __future__ import annotations
 
 import asyncio
+import gc
 import itertools
 import json
 
@@ -19,19 +33,16 @@ import pytest
 from websockets.asyncio.client import connect
 
 from realizer.bml_parser import BML_NS
+from realizer.service.server import freeze_start_up_heap
 from tests.service.harness import judge_frame_gaps, running_service
 from tests.service.test_end_to_end import real_assets, real_sessions
 
-#: The goal for the largest gap between two messages of the 60 fps stream
-#: (one frame period and a half): printed when missed, not asserted. On the
-#: 2-core machine it is missed now and then by a few milliseconds (29 to 31
-#: ms seen, once in about ten runs, alone and in CI), which docs/performance.md
-#: records as not reliably met.
-GOAL_GAP_S = 0.025
-#: The gap asserted: three frame periods. The defects this guards against
-#: froze the stream for 285 ms (the character's lock held through planning)
-#: and 678 ms (scipy imported on a planner thread).
-MAX_GAP_S = 0.050
+#: The largest gap allowed between two messages of the 60 fps stream: one
+#: frame period and a half (the defects this guards against froze the
+#: stream for 285 ms, the character's lock held through planning, 678 ms,
+#: scipy imported on a planner thread, and 33 ms, a tick that met the
+#: character's lock).
+MAX_GAP_S = 0.025
 
 
 def big_block(count: int = 256) -> str:
@@ -80,11 +91,15 @@ def test_the_frame_clock_keeps_its_cadence_while_a_256_behaviour_block_is_submit
                 watching.cancel()
             return arrivals, sent, accepted, state
 
-    arrivals, sent, accepted, state = asyncio.run(scenario())
+    real_assets(), real_sessions()("warm")  # the face and engines loaded, as realizer serve has
+    freeze_start_up_heap()
+    try:
+        arrivals, sent, accepted, state = asyncio.run(scenario())
+    finally:
+        gc.unfreeze()  # the rest of the suite collects everything again
     assert state == "accepted"
     window = [t for t in arrivals if sent - 0.05 <= t <= accepted + 0.3]
     assert len(window) >= 10, "the viewer got (almost) nothing while the block was planned"
     largest = max(b - a for a, b in itertools.pairwise(window))
-    if largest > GOAL_GAP_S:
-        print(f"frame gap goal of {GOAL_GAP_S * 1e3:.0f} ms not met: {largest * 1e3:.1f} ms")
+    print(f"largest frame gap while the block was submitted: {largest * 1e3:.1f} ms")
     judge_frame_gaps(window, MAX_GAP_S, "the frame stream")
