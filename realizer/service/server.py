@@ -29,6 +29,7 @@ import http
 import ipaddress
 import json
 import logging
+import selectors
 import signal
 import sys
 import time
@@ -382,12 +383,17 @@ def _make_offer(offer: _Offer) -> None:
         viewer.offer(data, WRITE_LIMIT, wire)
 
 
-def _loop_has_work(loop: asyncio.AbstractEventLoop) -> bool:
-    """Whether callbacks other than the caller's wait on ``loop``'s ready
-    queue (CPython's ``BaseEventLoop._ready``; a loop without one reads as
-    idle, so the clock gives it back one round per slice)."""
+def _ready_callbacks(loop: asyncio.AbstractEventLoop) -> int | None:
+    """How many callbacks wait on ``loop``'s ready queue (CPython's
+    ``BaseEventLoop._ready``), or None for a loop that has none to read."""
     ready = getattr(loop, "_ready", None)
-    return bool(ready)
+    return len(ready) if ready is not None else None
+
+
+#: Seconds the thread sleeps at a time in the last millisecond before a
+#: tick, with a round of the event loop between two sleeps: the loop is never
+#: held longer than this (and a sleep's slack) waiting for a tick.
+LAST_SLEEP = 0.00025
 
 
 async def _wait_until(loop: asyncio.AbstractEventLoop, due: float) -> None:
@@ -399,13 +405,17 @@ async def _wait_until(loop: asyncio.AbstractEventLoop, due: float) -> None:
     is left, under a millisecond, with the GIL released (``time.sleep``:
     ``clock_nanosleep``, microsecond resolution), so planner threads go on
     meanwhile. A wait that the loop's rounding would have made end up to
-    1 ms late now ends on time; the loop is held for at most that last
-    millisecond, which the tick due then would have taken anyway.
+    1 ms late now ends on time. That last millisecond is slept in pieces of
+    :data:`LAST_SLEEP` with a round of the loop between them, so a
+    submission that arrives then is read and handed to a planner thread
+    before the tick, not after it.
     """
     early = due - EPOLL_GRANULARITY - loop.time()
     if early > 0:
         await asyncio.sleep(early)
-    rest = due - loop.time()
+    while (rest := due - loop.time()) > LAST_SLEEP:
+        time.sleep(LAST_SLEEP)
+        await asyncio.sleep(0)
     if rest > 0:
         time.sleep(rest)
 
@@ -460,6 +470,9 @@ class RealizerService:
         self._frame_offers: list[_Offer] = []
         self._same_offers: list[_Offer] = []
         self._given_back_seconds = 0.0  # in the current tick
+        # The submitters' sockets, polled (never read) between two slices of
+        # a fan-out: a message waiting there is a reason to give the loop back.
+        self._submitter_sockets = selectors.DefaultSelector()
         self._stopping = False
         self._static = _StaticFiles()
         # The clock never waits for a submitter: each message is handled on
@@ -591,6 +604,7 @@ class RealizerService:
         for task in list(self._tasks):
             task.cancel()
         self._planner.shutdown(wait=False, cancel_futures=True)
+        self._submitter_sockets.close()
         if self._planner_pool is not None:
             self.stage.planner = None
             self._planner_pool.close()
@@ -664,9 +678,8 @@ class RealizerService:
         """
         self._frame_offers.clear()
         self._same_offers.clear()
-        self._tick(number, now)
+        busy = await self._tick(loop, number, now, until)
         await self._write_offers(loop, until)
-        busy = self.stage.busy
         while busy:
             if loop.time() + BUSY_RETRY_SECONDS >= until:
                 self.stats.busy_missed += len(busy)
@@ -678,19 +691,34 @@ class RealizerService:
             busy = self.stage.busy
             self.stats.busy_retried += len(retried)
             for character_tick in retried:
-                if character_tick.messages:
-                    self._dispatch(character_tick.messages)
-                self._deliver_frame(number, character_tick)
+                self._character_ticked(number, character_tick)
             await self._write_offers(loop, until)
 
-    def _tick(self, number: int, now: float) -> None:
-        """Advance every session, dispatch its feedback and queue its frame
-        (:meth:`_deliver_frame`; :meth:`_write_offers` writes them)."""
-        for character_tick in self.stage.tick(now):
-            if character_tick.messages:
-                self._dispatch(character_tick.messages)
-            self._deliver_frame(number, character_tick)
+    async def _tick(
+        self, loop: asyncio.AbstractEventLoop, number: int, now: float, until: float
+    ) -> list[str]:
+        """Advance each session, dispatch its feedback and queue its frame
+        (:meth:`_deliver_frame`; :meth:`_write_offers` writes them), giving
+        the loop back every :data:`FAN_OUT_SLICE` seconds until ``until``;
+        returns the characters left out, their lock held."""
+        busy: list[str] = []
+        clock = time.perf_counter
+        slice_end = clock() + FAN_OUT_SLICE
+        for character_id in list(self.stage.characters):
+            for character_tick in self.stage.tick(now, only=(character_id,)):
+                self._character_ticked(number, character_tick)
+            busy.extend(self.stage.busy)
+            if clock() >= slice_end:
+                if loop.time() < until and self._loop_wanted(loop):
+                    await self._yield_to_loop(loop, until)
+                slice_end = clock() + FAN_OUT_SLICE
         self._scene_changed()
+        return busy
+
+    def _character_ticked(self, number: int, character_tick: CharacterTick) -> None:
+        if character_tick.messages:
+            self._dispatch(character_tick.messages)
+        self._deliver_frame(number, character_tick)
 
     def _queued_offers(self) -> list[_Offer]:
         """The offers this tick queued (frames first, then ``same``
@@ -711,8 +739,9 @@ class RealizerService:
         last = len(offers) - 1
         for index, offer in enumerate(offers):
             _make_offer(offer)
-            if index < last and clock() >= slice_end and loop.time() < until:
-                await self._yield_to_loop(loop, until)
+            if index < last and clock() >= slice_end:
+                if loop.time() < until and self._loop_wanted(loop):
+                    await self._yield_to_loop(loop, until)
                 slice_end = clock() + FAN_OUT_SLICE
 
     def _write_offers_at_once(self) -> None:
@@ -720,6 +749,18 @@ class RealizerService:
         bench fanout`` times a whole fan-out this way)."""
         for offer in self._queued_offers():
             _make_offer(offer)
+
+    def _loop_wanted(self, loop: asyncio.AbstractEventLoop) -> bool:
+        """Whether something waits for the event loop that the clock should
+        let run now: a callback on the ready queue (a planner thread's
+        answer, a task woken), or a submitter's message unread in its socket
+        (polled without reading it). Viewers' sockets are not looked at: their
+        writes are the fan-out itself."""
+        ready = _ready_callbacks(loop)
+        if ready is None or ready > 0:
+            return True
+        sockets = self._submitter_sockets
+        return bool(sockets.get_map()) and bool(sockets.select(0))
 
     async def _yield_to_loop(self, loop: asyncio.AbstractEventLoop, until: float) -> None:
         """Let the event loop run what waits for it, then come back.
@@ -732,7 +773,7 @@ class RealizerService:
         began = time.perf_counter()
         self.stats.given_back += 1
         await asyncio.sleep(0)
-        while _loop_has_work(loop) and loop.time() < until:
+        while (_ready_callbacks(loop) or 0) > 0 and loop.time() < until:
             await asyncio.sleep(0)
         self._given_back_seconds += time.perf_counter() - began
 
@@ -940,6 +981,7 @@ class RealizerService:
         if "character" in query:
             submitter.characters.add(character)
         self.submitters.add(submitter)
+        polled = self._poll_submitter(connection)
         pump = self._spawn(self._pump_submitter(submitter))
         if submitter.format == "json":
             welcome = WelcomeMessage(
@@ -962,7 +1004,23 @@ class RealizerService:
                 await self._on_submit(submitter, message)
         finally:
             self.submitters.discard(submitter)
+            if polled is not None:
+                with contextlib.suppress(KeyError, ValueError, OSError):
+                    self._submitter_sockets.unregister(polled)
             pump.cancel()
+
+    def _poll_submitter(self, connection: ServerConnection) -> int | None:
+        """Add a submitter's socket to those the clock polls between slices
+        (:meth:`_loop_wanted`); its file descriptor, or None."""
+        sock = connection.transport.get_extra_info("socket")
+        if sock is None:
+            return None
+        fd = int(sock.fileno())
+        try:
+            self._submitter_sockets.register(fd, selectors.EVENT_READ)
+        except (KeyError, ValueError, OSError):
+            return None
+        return fd
 
     async def _on_submit(self, submitter: Submitter, text: str) -> None:
         """Process one message on a planner thread, then send what it made.

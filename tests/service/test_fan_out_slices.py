@@ -128,14 +128,14 @@ def test_a_fan_out_past_its_share_of_the_period_writes_the_rest_at_once() -> Non
 
 
 def test_a_character_whose_lock_is_held_at_its_tick_still_gets_that_frame() -> None:
-    async def scenario() -> tuple[list[int], int, int, int]:
+    async def scenario() -> tuple[list[int], list[int], int, int]:
         async with running_service(FakeSession, ASSETS) as service:
             loop = asyncio.get_running_loop()
             url = f"ws://127.0.0.1:{service.port}/view?character=held&fap=true"
             numbers: list[int] = []
+            held: list[int] = []  # the frames whose tick met the lock held
             async with connect(url) as viewer:
                 await viewer.recv()  # the mesh
-                held = 0
                 while len(numbers) < 40:
                     message = codec.unpack(await asyncio.wait_for(viewer.recv(), 5 * UNIT))
                     if message["type"] != "frame":
@@ -143,11 +143,11 @@ def test_a_character_whose_lock_is_held_at_its_tick_still_gets_that_frame() -> N
                     numbers.append(message["n"])
                     if len(numbers) % 10 == 5:
                         # As a submission committing a block does: hold the
-                        # character's lock over the next tick's due time.
+                        # character's lock over the next tick's due time
+                        # (the clock waits for that tick: nothing else runs).
                         lock = service.stage.characters["held"].lock
                         lock.acquire()
-                        held += 1
-                        # the next tick's (the clock waits for it: nothing runs now)
+                        held.append(service._frame)
                         due = service._start + service._frame / service.config.fps
                         loop.call_at(due + 0.001, lock.release)
             stats = service.stats
@@ -157,8 +157,8 @@ def test_a_character_whose_lock_is_held_at_its_tick_still_gets_that_frame() -> N
     load, cpus = os.getloadavg()[0], os.cpu_count() or 1
     if missed and load > cpus:
         pytest.skip(f"the loop was too late to retry (load average {load:.1f} > {cpus} CPUs)")
-    assert held == 4 and retried >= 1 and missed == 0
-    assert numbers == list(range(numbers[0], numbers[0] + len(numbers))), "a frame was skipped"
+    assert len(held) == 4 and retried >= 1 and missed == 0
+    assert set(held) <= set(numbers), "the frame of a tick that met the lock was skipped"
 
 
 def test_the_clock_gives_up_on_a_character_still_held_past_its_share_of_the_period() -> None:
