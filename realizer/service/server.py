@@ -462,14 +462,13 @@ class RealizerService:
         self._start = 0.0  # loop time of frame 0
         self._frame = 0  # number of the next frame
         self._scene_version = -1  # the scene version the viewers were last sent
-        # This tick's offers, written by _write_offers in slices: (viewer, its
-        # subscription then, payload, WebSocket bytes, content version; -1
-        # for a `same`). Frames go first, `same` messages after them: a
-        # viewer whose face changed is not kept waiting by those whose face
-        # did not.
+        # This tick's offers (_deliver_frame queues them, _write_offers makes
+        # them in slices): each character's frames once it is ticked, every
+        # `same` message after all the frames.
         self._frame_offers: list[_Offer] = []
         self._same_offers: list[_Offer] = []
         self._given_back_seconds = 0.0  # in the current tick
+        self._slice_end = 0.0  # perf_counter time the clock's current slice ends
         # The submitters' sockets, polled (never read) between two slices of
         # a fan-out: a message waiting there is a reason to give the loop back.
         self._submitter_sockets = selectors.DefaultSelector()
@@ -664,26 +663,36 @@ class RealizerService:
         self, loop: asyncio.AbstractEventLoop, number: int, now: float, until: float
     ) -> None:
         """One tick: every session advanced, its feedback dispatched and its
-        frame written to its viewers, in slices (:meth:`_write_offers`).
+        frame written to its viewers, in slices of :data:`FAN_OUT_SLICE`.
 
-        No submitter waits behind the clock: between slices the event loop
-        runs what waits for it (a submission read and handed to a planner
-        thread, an ``accepted`` sent). No viewer waits behind a submitter: a
-        character whose lock a submission holds (a block being admitted or
-        committed, for a few milliseconds) is tried again every
-        :data:`BUSY_RETRY_SECONDS`, so its frame goes out late in this
-        period instead of not at all. Both end at ``until`` (loop time): the
-        rest of the frames are then written at once, a busy character's
-        frame skipped.
+        Each character's frames are written as soon as it is ticked, its
+        ``same`` messages after every character's frames: a viewer whose
+        face changed is not kept waiting by those whose face did not.
+
+        No submitter waits behind the clock: between two slices the event
+        loop runs what waits for it (:meth:`_loop_wanted`: a submission read
+        and handed to a planner thread, an ``accepted`` sent). No viewer
+        waits behind a submitter: a character whose lock a submission holds
+        (a block being admitted or committed, for a few milliseconds) is
+        tried again every :data:`BUSY_RETRY_SECONDS`, so its frame goes out
+        late in this period instead of not at all. Both end at ``until``
+        (loop time): past it the rest of the frames are written at once and
+        a character still busy misses this frame.
         """
         self._frame_offers.clear()
         self._same_offers.clear()
-        busy = await self._tick(loop, number, now, until)
-        await self._write_offers(loop, until)
+        self._slice_end = time.perf_counter() + FAN_OUT_SLICE
+        busy: list[str] = []
+        for character_id in list(self.stage.characters):
+            for character_tick in self.stage.tick(now, only=(character_id,)):
+                self._character_ticked(number, character_tick)
+            busy.extend(self.stage.busy)
+            await self._write_offers(loop, until, self._frame_offers)
+        self._scene_changed()
         while busy:
             if loop.time() + BUSY_RETRY_SECONDS >= until:
                 self.stats.busy_missed += len(busy)
-                return
+                break
             began = time.perf_counter()
             await asyncio.sleep(BUSY_RETRY_SECONDS)
             self._given_back_seconds += time.perf_counter() - began
@@ -692,63 +701,42 @@ class RealizerService:
             self.stats.busy_retried += len(retried)
             for character_tick in retried:
                 self._character_ticked(number, character_tick)
-            await self._write_offers(loop, until)
-
-    async def _tick(
-        self, loop: asyncio.AbstractEventLoop, number: int, now: float, until: float
-    ) -> list[str]:
-        """Advance each session, dispatch its feedback and queue its frame
-        (:meth:`_deliver_frame`; :meth:`_write_offers` writes them), giving
-        the loop back every :data:`FAN_OUT_SLICE` seconds until ``until``;
-        returns the characters left out, their lock held."""
-        busy: list[str] = []
-        clock = time.perf_counter
-        slice_end = clock() + FAN_OUT_SLICE
-        for character_id in list(self.stage.characters):
-            for character_tick in self.stage.tick(now, only=(character_id,)):
-                self._character_ticked(number, character_tick)
-            busy.extend(self.stage.busy)
-            if clock() >= slice_end:
-                if loop.time() < until and self._loop_wanted(loop):
-                    await self._yield_to_loop(loop, until)
-                slice_end = clock() + FAN_OUT_SLICE
-        self._scene_changed()
-        return busy
+            await self._write_offers(loop, until, self._frame_offers)
+        await self._write_offers(loop, until, self._same_offers)
 
     def _character_ticked(self, number: int, character_tick: CharacterTick) -> None:
         if character_tick.messages:
             self._dispatch(character_tick.messages)
         self._deliver_frame(number, character_tick)
 
-    def _queued_offers(self) -> list[_Offer]:
-        """The offers this tick queued (frames first, then ``same``
-        messages); the queues are emptied."""
-        offers = self._frame_offers
-        offers.extend(self._same_offers)
-        self._frame_offers, self._same_offers = [], []
-        return offers
-
-    async def _write_offers(self, loop: asyncio.AbstractEventLoop, until: float) -> None:
-        """Offer the queued frames, then the queued ``same`` messages, to
-        their viewers (:func:`_make_offer`); every :data:`FAN_OUT_SLICE`
-        seconds of it, until the loop time ``until``, give the event loop
-        back (:meth:`_yield_to_loop`)."""
-        offers = self._queued_offers()
+    async def _write_offers(
+        self, loop: asyncio.AbstractEventLoop, until: float, queue: list[_Offer]
+    ) -> None:
+        """Make the offers in ``queue`` (:func:`_make_offer`), emptying it;
+        whenever the current slice (``_slice_end``) is over, give the event
+        loop back if something waits for it and ``until`` (loop time) is not
+        past (:meth:`_yield_to_loop`), and start the next slice."""
+        if not queue:
+            return
+        offers = queue.copy()
+        queue.clear()
         clock = time.perf_counter
-        slice_end = clock() + FAN_OUT_SLICE
-        last = len(offers) - 1
-        for index, offer in enumerate(offers):
+        for offer in offers:
             _make_offer(offer)
-            if index < last and clock() >= slice_end:
+            if clock() >= self._slice_end:
                 if loop.time() < until and self._loop_wanted(loop):
                     await self._yield_to_loop(loop, until)
-                slice_end = clock() + FAN_OUT_SLICE
+                self._slice_end = clock() + FAN_OUT_SLICE
 
     def _write_offers_at_once(self) -> None:
-        """Offer everything queued, without giving the loop back (``realizer
-        bench fanout`` times a whole fan-out this way)."""
-        for offer in self._queued_offers():
-            _make_offer(offer)
+        """Make every queued offer, frames then ``same`` messages, without
+        giving the loop back (``realizer bench fanout`` times a whole
+        fan-out this way)."""
+        for queue in (self._frame_offers, self._same_offers):
+            offers = queue.copy()
+            queue.clear()
+            for offer in offers:
+                _make_offer(offer)
 
     def _loop_wanted(self, loop: asyncio.AbstractEventLoop) -> bool:
         """Whether something waits for the event loop that the clock should
