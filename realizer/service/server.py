@@ -721,8 +721,12 @@ class RealizerService:
         offers = queue.copy()
         queue.clear()
         clock = time.perf_counter
-        for offer in offers:
-            _make_offer(offer)
+        for viewer, subscription, data, wire, version in offers:  # _make_offer, inlined
+            if viewer.subscription == subscription:
+                if version < 0:
+                    viewer.offer_same(data, WRITE_LIMIT, wire)
+                else:
+                    viewer.offer(data, WRITE_LIMIT, wire)
             if clock() >= self._slice_end:
                 if loop.time() < until and self._loop_wanted(loop):
                     await self._yield_to_loop(loop, until)
