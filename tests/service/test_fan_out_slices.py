@@ -149,23 +149,25 @@ def test_a_character_whose_lock_is_held_at_its_tick_still_gets_that_frame() -> N
                     if message["type"] != "frame":
                         continue
                     numbers.append(message["n"])
-                    if len(numbers) % 10 == 5:
+                    target = message["n"] + 1
+                    due = service._start + target / service.config.fps
+                    if len(numbers) % 10 == 5 and loop.time() < due - 0.002:
                         # As a submission committing a block does: hold the
-                        # character's lock over the next tick's due time
-                        # (the clock waits for that tick: nothing else runs).
+                        # character's lock over the next tick's due time.
                         lock = service.stage.characters["held"].lock
                         lock.acquire()
-                        held.append(service._frame)
-                        due = service._start + service._frame / service.config.fps
+                        held.append(target)
                         loop.call_at(due + 0.001, lock.release)
             stats = service.stats
             return numbers, held, stats.busy_retried, stats.busy_missed
 
     numbers, held, retried, missed = asyncio.run(scenario())
     load, cpus = os.getloadavg()[0], os.cpu_count() or 1
-    if missed and load > cpus:
-        pytest.skip(f"the loop was too late to retry (load average {load:.1f} > {cpus} CPUs)")
-    assert len(held) == 4 and retried >= 1 and missed == 0
+    if (missed or not retried or not held) and load > cpus:
+        # the clock or this test's reader ran late: a hold missed its tick,
+        # or the retry its half period
+        pytest.skip(f"timing not judged: load average {load:.1f} > {cpus} CPUs")
+    assert held and retried >= 1 and missed == 0
     assert set(held) <= set(numbers), "the frame of a tick that met the lock was skipped"
 
 
