@@ -1581,6 +1581,36 @@ def jaw_tables(shapes: dict[str, FloatArray], chin: int, still: IntArray) -> lis
     return tables
 
 
+#: shift_jaw's lip corners (jaw_shift_corners): the skin within the first
+#: distance (metres) of an inner lip corner moves half as far as the lower
+#: lip, blending back to the jaw's own motion by the second.
+JAW_SHIFT_CORNER_M = (0.002, 0.012)
+
+
+def jaw_shift_corners(
+    table: Any, v: FloatArray, skin: IntArray, corners: list[FloatArray], lower_middle: int
+) -> Any:
+    """shift_jaw's table (15) with the lip corners carried half way: the
+    artist's jawRight slides the whole lower lip sideways under the still
+    upper one, so at 256 MW (13 mm) the lower lip's end stood out past one
+    corner and fell short of the other, a kink at each. Near each inner
+    corner (JAW_SHIFT_CORNER_M) the skin of both lips moves half as far as
+    the lower lip's middle (``lower_middle``), blending into the jaw's motion
+    on the lower lip and into stillness on the upper one, so the corners
+    stay where the two lips meet."""
+    rows = np.asarray(table.vertices, dtype=np.int64)
+    dense = np.zeros((len(v), 3))
+    dense[rows] = table.displacement_array()[:, 0]
+    reference = dense[lower_middle].copy()
+    blend = np.zeros(len(v))
+    for corner in corners:
+        near = 1.0 - rise(np.linalg.norm(v[skin] - corner, axis=1), *JAW_SHIFT_CORNER_M)
+        blend[skin] = np.maximum(blend[skin], near)
+    dense = dense * (1.0 - blend[:, None]) + 0.5 * blend[:, None] * reference[None, :]
+    keep = np.union1d(rows, np.flatnonzero(blend > 0.0))
+    return shape_table(15, (-1000.0, 1000.0), [dense], keep)
+
+
 def side_share(x: FloatArray, sign: float, width: float) -> FloatArray:
     """How much of a symmetric shape belongs to one side (``sign`` +1: the
     face's left, +x): 1 beyond ``width`` on that side, 0 beyond it on the
@@ -1908,6 +1938,11 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         ("lower", "outer"): ("8.3", "8.7", "8.2", "8.8", "8.4"),
     }
     lips = {"upper": upper_lip, "lower": lower_lip}
+    # shift_jaw (15) with the lip corners half way (jaw_shift_corners)
+    at = next(k for k, d in enumerate(deformers) if d.fap == 15)
+    deformers[at] = jaw_shift_corners(
+        deformers[at], v, skin, [fp["2.4"], fp["2.5"]], fp_index["2.3"]
+    )
     lower_share, upper_share = pout_tables(
         v, skin_triangles, skin, shape("mouthPucker"), np.intersect1d(on_lips, lower_lip),
         np.intersect1d(on_lips, upper_lip), (fp["2.2"] + fp["2.3"]) / 2,

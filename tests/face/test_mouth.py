@@ -228,3 +228,38 @@ def test_the_outer_lip_middle_moves_its_outline_whole_not_to_a_vertex(
         assert np.all(offsets[near, 1] / motion > 0.9)
         for name in ("8.3", "8.4"):
             assert np.linalg.norm(offsets[face.feature_vertex(name)]) < 0.1 * abs(motion)
+
+
+@pytest.mark.parametrize("value", [256.0, -256.0])
+def test_shifting_the_jaw_carries_the_lip_corners_half_way(face: Face, value: float) -> None:
+    """At 256 MW (the practical range's end) the artist's jawRight slid the
+    lower lip 13 mm under the still upper one, its end standing out past one
+    corner (which went 62 % as far as the lip's middle, the other 39 %) with
+    a kink beside each (skin stretched up to 0.9 mm per mm within 12 mm of
+    a corner): now both inner corners (2.4, 2.5) go half as far as the
+    lower lip's middle (2.3), which still goes with the chin, the skin round
+    them stretches under 0.8 mm per mm, and the upper lip's middle (2.2)
+    moves at most 15 % as far (the artist's jawRight drags it 12 %)."""
+    v = np.asarray(face.vertices, dtype=np.float64)
+    offsets = posed(face, {15: value}) - v
+    middle = offsets[face.feature_vertex("2.3"), 0]
+    chin = offsets[face.feature_vertex("2.1"), 0]
+    assert abs(chin) == pytest.approx(abs(value) * face.fapu.mw, rel=0.02)
+    assert middle / chin > 0.8
+    skin = face.part("skin")
+    faces = np.asarray(face.faces)
+    faces = faces[np.isin(faces, skin).all(axis=1)]
+    edges = np.unique(
+        np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1),
+        axis=0,
+    )
+    for corner in ("2.4", "2.5"):
+        share = offsets[face.feature_vertex(corner), 0] / middle
+        assert 0.45 < share < 0.55, corner
+        p = v[face.feature_vertex(corner)]
+        near = edges[(np.linalg.norm(v[edges] - p, axis=2) < 0.012).all(axis=1)]
+        stretch = np.linalg.norm(
+            offsets[near[:, 0]] - offsets[near[:, 1]], axis=1
+        ) / np.linalg.norm(v[near[:, 0]] - v[near[:, 1]], axis=1)
+        assert stretch.max() < 0.8, corner
+    assert np.linalg.norm(offsets[face.feature_vertex("2.2")]) < 0.15 * abs(chin)
