@@ -13,7 +13,10 @@ repository root:
 
 ``--set mouth`` draws the mouth's fixes instead (the tongue, the lips pushed
 out and their outer middles, the chin, the nostril wings) into
-``docs/images/mouth_before_after.png``, side views framed on the lips.
+``docs/images/mouth_before_after.png``, side views framed on the lips;
+``--set eyes`` the lids' and brows' (the upper lid widened, the lower lid
+raised, the outer brow lowered and the brows squeezed, front and side
+close-ups of the left eye) into ``docs/images/eyes_before_after.png``.
 """
 
 from __future__ import annotations
@@ -53,6 +56,18 @@ MOUTH_POSES: tuple[tuple[str, str, str, dict[int, float]], ...] = (
 )
 
 
+#: the lids' and brows' fixes (``--set eyes``): close-ups of the left eye,
+#: front and from the left, at the sheet's values
+EYE_POSES: tuple[tuple[str, str, str, dict[int, float]], ...] = (
+    ("close_t_l -512", "left eye", "front", {19: -512}),
+    ("close_t_l -512 (side)", "left eye", "left", {19: -512}),
+    ("close_b_l 512", "left eye", "front", {21: 512}),
+    ("close_b_l 512 (side)", "left eye", "left", {21: 512}),
+    ("raise_l_o_brow -128 (side)", "left eye", "left", {35: -128}),
+    ("squeeze_l_brow 96 (side)", "left eye", "left", {37: 96}),
+)
+
+
 def main() -> None:
     from realizer.commands.fap_sheet import region_framing
     from realizer.face.default import load_default_face
@@ -64,9 +79,9 @@ def main() -> None:
     parser.add_argument("--before", required=True, help="the earlier face file (STEM)")
     parser.add_argument("--out", type=Path, help="default: docs/images/SET_before_after.png")
     parser.add_argument("--tile", type=int, default=200)
-    parser.add_argument("--set", choices=("lower_face", "mouth"), default="lower_face")
+    parser.add_argument("--set", choices=("lower_face", "mouth", "eyes"), default="lower_face")
     args = parser.parse_args()
-    poses = MOUTH_POSES if args.set == "mouth" else POSES
+    poses = {"mouth": MOUTH_POSES, "eyes": EYE_POSES}.get(args.set, POSES)
     out = args.out or Path(f"docs/images/{args.set}_before_after.png")
     faces = {"before": load_face(args.before), "after": load_default_face()}
     tile, label_width, header = args.tile, 56, 18
