@@ -12,9 +12,10 @@ every module works as plain Python too:
   ``pip install realizer`` is pure Python);
 * ``REALIZER_PURE=1`` in the environment: the sources run even where the
   extensions are built (the test suite runs the parser's tests both ways);
-* a source edited since the build (the build records each source's SHA-256
-  in ``_compiled.json``): its extension would run old code, so all the
-  sources run instead, until the build is run again (``bash
+* a source edited since the build (the build records each source's size,
+  modification time and SHA-256 in ``_compiled.txt``; the hash is computed
+  only when size or time differ): its extension would run old code, so all
+  the sources run instead, until the build is run again (``bash
   scripts/setup.sh``). All or none: a compiled module calls the compiled
   code of the others directly.
 
@@ -33,14 +34,12 @@ monkeypatched by tests.
 
 from __future__ import annotations
 
-import importlib.abc
 import importlib.machinery
-import importlib.util
 import os
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 #: The modules compiled by ``scripts/build_compiled.py``, by import name.
 MODULES: tuple[str, ...] = (
@@ -52,67 +51,92 @@ MODULES: tuple[str, ...] = (
 #: The environment variable that makes every module run from its source.
 PURE_ENV = "REALIZER_PURE"
 
-_PACKAGE = Path(__file__).resolve().parent
-#: Written by the build: each compiled module's source SHA-256.
-MANIFEST = _PACKAGE / "_compiled.json"
+# os.path, not pathlib, and nothing else imported at start-up: this runs at
+# every ``import realizer`` (``realizer --help`` has a 50 ms budget)
+_PACKAGE = os.path.dirname(os.path.abspath(__file__))
+#: Written by the build, a line a module: name, size, mtime_ns, SHA-256 of its source.
+MANIFEST = os.path.join(_PACKAGE, "_compiled.txt")
 
 #: Why the sources run although extensions are present ("" when they do not).
 _reason = ""
 
 
-def source_path(module: str) -> Path:
+def source_path(module: str) -> str:
     """The ``.py`` file of ``module`` (one of :data:`MODULES`)."""
     parts = module.split(".")
     assert parts[0] == "realizer", module
-    return _PACKAGE.joinpath(*parts[1:]).with_suffix(".py")
+    return os.path.join(_PACKAGE, *parts[1:]) + ".py"
 
 
-def extension_paths(module: str) -> list[Path]:
+def extension_paths(module: str) -> list[str]:
     """The built extensions of ``module`` for this interpreter (none or one)."""
-    source = source_path(module)
+    stem = source_path(module)[: -len(".py")]
     return [
-        path
+        stem + suffix
         for suffix in importlib.machinery.EXTENSION_SUFFIXES
-        if (path := source.with_name(source.stem + suffix)).is_file()
+        if os.path.isfile(stem + suffix)
     ]
 
 
 def source_digest(module: str) -> str:
+    """The SHA-256 of ``module``'s source, hexadecimal."""
     import hashlib
 
-    return hashlib.sha256(source_path(module).read_bytes()).hexdigest()
+    with open(source_path(module), "rb") as source:
+        return hashlib.sha256(source.read()).hexdigest()
+
+
+def source_record(module: str) -> str:
+    """The manifest's line for ``module``: name, size, mtime_ns, SHA-256."""
+    status = os.stat(source_path(module))
+    return f"{module} {status.st_size} {status.st_mtime_ns} {source_digest(module)}"
 
 
 def _stale(modules: Sequence[str]) -> list[str]:
     """The modules whose extension was not built from their present source."""
-    import json
-
+    recorded: dict[str, list[str]] = {}
     try:
-        built: dict[str, str] = json.loads(MANIFEST.read_text(encoding="utf-8"))["sources"]
-    except (OSError, ValueError, KeyError, TypeError):
-        built = {}
-    return [module for module in modules if built.get(module) != source_digest(module)]
+        with open(MANIFEST, encoding="utf-8") as manifest:
+            for line in manifest:
+                fields = line.split()
+                if len(fields) == 4:
+                    recorded[fields[0]] = fields[1:]
+    except OSError:
+        pass
+    stale = []
+    for module in modules:
+        entry = recorded.get(module)
+        if entry is None:
+            stale.append(module)
+            continue
+        status = os.stat(source_path(module))
+        if entry[:2] == [str(status.st_size), str(status.st_mtime_ns)]:
+            continue  # untouched since the build
+        if entry[2] != source_digest(module):  # touched: changed only if the hash differs
+            stale.append(module)
+    return stale
 
 
-class _Sources(importlib.abc.MetaPathFinder):
-    """Finds :data:`MODULES` as their ``.py`` sources, passing over extensions."""
+class _Sources:
+    """A meta path finder: :data:`MODULES` as their ``.py`` sources, passing
+    over the extensions beside them."""
 
     def find_spec(
-        self,
-        fullname: str,
-        path: Sequence[str] | None,
-        target: ModuleType | None = None,
-    ) -> importlib.machinery.ModuleSpec | None:
+        self, fullname: str, path: Sequence[str] | None, target: ModuleType | None = None
+    ) -> Any:
         if fullname not in MODULES:
             return None
+        import importlib.util
+
         return importlib.util.spec_from_file_location(fullname, source_path(fullname))
 
 
 def select() -> None:
     """Run the sources of :data:`MODULES` when their extensions must not run.
 
-    Cheap when nothing is built (one ``stat`` a module); with extensions,
-    hashes the sources (about 100 kB) once per process.
+    Cheap: a ``stat`` a module when nothing is built; with extensions, a
+    ``stat`` a source and the manifest read (a source's hash only when its
+    size or time changed).
     """
     global _reason
     built = [module for module in MODULES if extension_paths(module)]
@@ -124,7 +148,7 @@ def select() -> None:
         stale = _stale(built)
         if not stale:
             return
-        names = ", ".join(source_path(module).name for module in stale)
+        names = ", ".join(os.path.basename(source_path(module)) for module in stale)
         _reason = (
             f"stale extensions: {names} changed since the build; "
             "run bash scripts/setup.sh or python scripts/build_compiled.py"

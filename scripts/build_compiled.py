@@ -8,9 +8,9 @@ The modules are :data:`realizer.compiled.MODULES` (the one list). mypyc
 (part of mypy, the dev extra) type-checks them with the project's mypy
 settings and writes C; setuptools and the system's C compiler build one
 extension per module plus their shared library (``realizer/_native__mypyc``),
-which are copied beside the sources (gitignored), with ``_compiled.json``
-recording each source's SHA-256: ``realizer.compiled.select`` runs the
-sources instead when one changed. The C and objects are built in a
+which are copied beside the sources (gitignored), with ``_compiled.txt``
+recording each source's size, time and SHA-256: ``realizer.compiled.select``
+runs the sources instead when one changed. The C and objects are built in a
 temporary directory, so nothing else lands in the tree.
 
 Without mypy, setuptools, a C compiler or Python's headers nothing is built
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.machinery
-import json
 import os
 import runpy
 import shutil
@@ -39,9 +38,13 @@ GROUP = "realizer._native"
 # realizer.compiled without importing the realizer (whose import selects modules)
 _compiled = runpy.run_path(str(PACKAGE / "compiled.py"), run_name="realizer_compiled")
 MODULES: tuple[str, ...] = _compiled["MODULES"]
-source_path = _compiled["source_path"]
-source_digest = _compiled["source_digest"]
-MANIFEST: Path = _compiled["MANIFEST"]
+source_record = _compiled["source_record"]
+stale = _compiled["_stale"]
+MANIFEST = Path(_compiled["MANIFEST"])
+
+
+def source_path(module: str) -> Path:
+    return Path(_compiled["source_path"](module))
 
 
 def built_files() -> list[Path]:
@@ -113,31 +116,16 @@ def build() -> None:
             shutil.copyfile(built, target)
             copied.append(target.relative_to(ROOT))
     MANIFEST.write_text(
-        json.dumps(
-            {
-                "python": sys.implementation.cache_tag,
-                "sources": {module: source_digest(module) for module in MODULES},
-            },
-            indent=1,
-        )
-        + "\n",
-        encoding="utf-8",
+        "".join(source_record(module) + "\n" for module in MODULES), encoding="utf-8"
     )
     print(f"build_compiled: {len(copied)} extensions: {', '.join(map(str, sorted(copied)))}")
 
 
 def current() -> bool:
     """True when every module is built from its present source."""
-    try:
-        recorded = json.loads(MANIFEST.read_text(encoding="utf-8"))["sources"]
-    except (OSError, ValueError, KeyError):
-        return False
     suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
-    return all(
-        recorded.get(module) == source_digest(module)
-        and source_path(module).with_suffix(suffix).is_file()
-        for module in MODULES
-    )
+    built = all(source_path(module).with_suffix(suffix).is_file() for module in MODULES)
+    return built and not stale(MODULES)
 
 
 def main() -> int:
