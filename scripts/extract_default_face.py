@@ -1042,16 +1042,21 @@ def lip_profile(x: FloatArray, centre: float, corner: float) -> FloatArray:
 #: band follows lip_side_profile along the whole lip (no floor), which
 #: reaches 0 at the corner's share of the way from the midline to the corner
 #: (towards the other lip, positive values, it ends sooner: there the
-#: corner's triangles, pressed against the other lip, fold first) ...
+#: corner's triangles, pressed against the other lip, fold first), falling
+#: as cos to that power or, for a negative one, as (1 - t²) to minus it: the
+#: upper lip dropping (8+, 9+, 55+, 56+) fades as cos² to the corner itself
+#: (as a quarter cosine it turned back to the corner in one vertex); the
+#: lower lip dropping (10-, 11-, 57-, 58-) as a rounder (1 - t²)^0.7, the
+#: opening's end a U beside the corner (a quarter cosine: a straight edge) ...
 LIP_SIDE_FAPS = frozenset({8, 9, 10, 11, 55, 56, 57, 58})
 LIP_SIDE_CORNER = {
     ("upper", "inner", -1): (0.95, 1.0),
-    ("upper", "inner", 1): (0.95, 1.0),
-    ("lower", "inner", -1): (0.95, 1.0),
+    ("upper", "inner", 1): (1.0, 2.0),
+    ("lower", "inner", -1): (0.95, -0.7),
     ("lower", "inner", 1): (0.95, 1.0),
     ("upper", "outer", -1): (0.92, 1.0),
-    ("upper", "outer", 1): (0.92, 1.0),
-    ("lower", "outer", -1): (0.92, 1.0),
+    ("upper", "outer", 1): (1.0, 2.0),
+    ("lower", "outer", -1): (0.95, -0.7),
     ("lower", "outer", 1): (0.85, 1.5),
 }
 #: ... and on the middle's side 0 this share of that distance past the midline.
@@ -1061,6 +1066,13 @@ LIP_SIDE_MIRROR_SHARE = 0.75
 LIP_OVER_FORWARD: dict[tuple[str, str, int], float] = {("upper", "inner", 1): 0.3}
 
 
+#: The paths that wall the upper lip off from the lower one beside the
+#: mouth's corners (lip_sides), inner to outer corner ...
+CORNER_WALLS = (("2.4", "8.3"), ("2.5", "8.4"))
+#: ... and the lips whose side FAPs take their vertices from lip_sides.
+LIP_SIDES_BY_MESH = frozenset({"lower"})
+
+
 def lip_side_profile(
     x: FloatArray, centre: float, corner: float, end_share: float = 0.95, power: float = 1.0
 ) -> FloatArray:
@@ -1068,9 +1080,10 @@ def lip_side_profile(
     (``centre`` != 0), shaped so that the lip's contour, which hm08 samples
     with five vertices from the middle to each corner, bends as a curve and
     not as a polyline with one sharp vertex: flat at the feature point (1)
-    and falling as a quarter cosine to 0 at ``end_share`` of the way to the
-    corner (``corner`` is where lip_profile ends, LIP_CORNER_SHARE of the
-    way), and on the middle's side as a raised cosine that reaches 0
+    and falling as a quarter cosine (``power`` 1; cos**power, or for a
+    negative power (1 - t**2)**-power, t = 0..1 along the way) to 0 at
+    ``end_share`` of the way to the corner (``corner`` is where lip_profile
+    ends, LIP_CORNER_SHARE of the way), and on the middle's side as a raised cosine that reaches 0
     LIP_SIDE_MIRROR_SHARE of that distance past the midline (0.15 at the
     mirror point). lip_profile's cos² falling to 0 at the mirror point,
     joined to the band by the harmonic fill (linear across the lip), made a
@@ -1081,7 +1094,11 @@ def lip_side_profile(
     c = abs(centre)
     out = np.zeros_like(x)
     outer = (s >= c) & (s < end)
-    out[outer] = np.cos(0.5 * np.pi * (s[outer] - c) / (end - c)) ** power
+    t = (s[outer] - c) / (end - c)
+    if power > 0:
+        out[outer] = np.cos(0.5 * np.pi * t) ** power
+    else:
+        out[outer] = (1.0 - t**2) ** -power
     mirror = LIP_SIDE_MIRROR_SHARE * end
     inner = (s < c) & (s > -mirror)
     out[inner] = np.cos(0.5 * np.pi * (c - s[inner]) / (c + mirror)) ** 2
@@ -1189,6 +1206,65 @@ def lip_field(
     # The feature point moves one FAPU per unit.
     nearest = int(np.argmin(np.linalg.norm(v[lip] - anchor, axis=1)))
     return out / out[lip[nearest]]
+
+
+def mesh_path(v: FloatArray, triangles: IntArray, through: list[int]) -> IntArray:
+    """The shortest path along the mesh's edges through the vertices
+    ``through`` in turn (Dijkstra, edge lengths), the vertices in order."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    i = triangles.ravel()
+    j = np.roll(triangles, -1, axis=1).ravel()
+    w = np.linalg.norm(v[i] - v[j], axis=1)
+    n = len(v)
+    graph = coo_matrix((np.r_[w, w], (np.r_[i, j], np.r_[j, i])), shape=(n, n)).tocsr()
+    out = [through[0]]
+    for a, b in itertools.pairwise(through):
+        _, pred = dijkstra(graph, indices=a, return_predecessors=True)
+        walk = [b]
+        while walk[-1] != a:
+            walk.append(int(pred[walk[-1]]))
+        out += walk[::-1][1:]
+    return np.asarray(out)
+
+
+def lip_sides(
+    v: FloatArray,
+    triangles: IntArray,
+    region: IntArray,
+    contours: tuple[IntArray, IntArray],
+    corners: IntArray,
+    starts: tuple[int, int],
+) -> IntArray:
+    """The vertices of ``region`` (the lips, without the mouth's pocket) that
+    lie on the lower lip's side of the mesh: reached from the lower lip's
+    inner midpoint (``starts``: 2.3, 2.2) without crossing the upper lip's
+    inner contour, and not reached from the upper one's without crossing the
+    lower's (``contours``: upper inner, lower inner; ``corners``: the paths
+    from the inner to the outer corners, a wall on both floods). Behind the
+    pressed lips the two sides meet; those vertices are left out.
+    jawOpen's share, which sorts the rest of the lips, puts the lower lip's
+    last 3 mm before each corner on the upper lip: it hardly moves there."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    def side(wall: IntArray, start: int) -> IntArray:
+        inside = np.setdiff1d(region, np.union1d(wall, corners))
+        keep = np.isin(triangles, inside)
+        i = np.concatenate([triangles[:, k][keep[:, k] & keep[:, (k + 1) % 3]] for k in range(3)])
+        j = np.concatenate(
+            [triangles[:, (k + 1) % 3][keep[:, k] & keep[:, (k + 1) % 3]] for k in range(3)]
+        )
+        n = len(v)
+        graph = coo_matrix((np.ones(2 * len(i)), (np.r_[i, j], np.r_[j, i])), shape=(n, n))
+        _, label = connected_components(graph.tocsr(), directed=False)
+        found: IntArray = inside[np.asarray(label)[inside] == label[start]]
+        return found
+
+    upper_inner, lower_inner = contours
+    out: IntArray = np.setdiff1d(side(upper_inner, starts[0]), side(lower_inner, starts[1]))
+    return out
 
 
 def lip_side_table(
@@ -1943,6 +2019,24 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
     deformers[at] = jaw_shift_corners(
         deformers[at], v, skin, [fp["2.4"], fp["2.5"]], fp_index["2.3"]
     )
+    # The lip FAPs between middle and corner sort the lips by the mesh
+    # (lip_sides): the lower lip's corners move with it.
+    walls = np.concatenate(
+        [mesh_path(v, skin_triangles, [fp_index[a], fp_index[b]]) for a, b in CORNER_WALLS]
+    )
+    lower_side = lip_sides(
+        v, skin_triangles,
+        np.setdiff1d(on_lips[np.abs(v[on_lips, 0]) < fp["8.3"][0] - 1e-5], parts["mouth_inside"]),
+        tuple(
+            mesh_path(v, skin_triangles, [fp_index[p] for p in contour_points[(lip, "inner")]])
+            for lip in ("upper", "lower")
+        ),  # type: ignore[arg-type]
+        walls, (fp_index["2.3"], fp_index["2.2"]),
+    )  # fmt: skip
+    side_lips = {
+        "upper": np.setdiff1d(upper_lip, lower_side),
+        "lower": np.union1d(lower_lip, lower_side),
+    }
     lower_share, upper_share = pout_tables(
         v, skin_triangles, skin, shape("mouthPucker"), np.intersect1d(on_lips, lower_lip),
         np.intersect1d(on_lips, upper_lip), (fp["2.2"] + fp["2.3"]) / 2,
@@ -1968,10 +2062,13 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
         other = lips["lower" if lip == "upper" else "upper"]
         points = [fp[name] for name in contour_points[(lip, contour)]]
         if fap in LIP_SIDE_FAPS:
+            sorted_by = side_lips if lip in LIP_SIDES_BY_MESH else lips
+            own = sorted_by[lip]
+            still = sorted_by["lower" if lip == "upper" else "upper"]
             deformers.append(
                 lip_side_table(
                     fap, v, skin_triangles, skin, points, fp[point], direction,
-                    (lips[lip], other, parts["mouth_inside"]), (lip, contour),
+                    (own, still, parts["mouth_inside"]), (lip, contour),
                 )
             )  # fmt: skip
             continue

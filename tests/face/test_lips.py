@@ -158,3 +158,45 @@ def test_a_corner_raised_to_800_folds_nothing_and_keeps_rising(face: Face, fap: 
     corner = face.feature_vertex({12: "2.4", 13: "2.5", 59: "8.3", 60: "8.4"}[fap])
     lift = vertices[corner, 1] - float(face.vertices[corner, 1])
     assert lift == pytest.approx(800 * face.fapu.mns, rel=0.01)
+
+
+#: FAP: its feature point (which side of the mouth it moves).
+SIDE_POINTS = {8: "2.6", 9: "2.7", 10: "2.8", 11: "2.9", 55: "8.5", 56: "8.6", 57: "8.7", 58: "8.8"}
+
+
+@pytest.mark.parametrize("fap", [10, 11, 57, 58])
+def test_the_lower_lip_drops_up_to_its_corner(
+    face: Face, contours: dict[str, np.ndarray], fap: int
+) -> None:
+    """Dropping the lower lip beside the middle (10-, 11-, 57-, 58- at 512)
+    moves its contour within 3 mm of the corner by at least 2 mm, and the
+    upper lip's contours not at all. jawOpen's share sorted the lower lip's
+    last 3 mm before each corner onto the upper lip (lip_sides): held
+    still there, the lip fell to the corner along one steep straight edge
+    (10-) or kinked at the bulge's lower edge (57-)."""
+    v0 = np.asarray(face.vertices, dtype=np.float64)
+    vertices = posed(face, {fap: -512})
+    loop = contours[SIDE_FAPS[fap]]
+    side = np.sign(v0[face.feature_vertex(SIDE_POINTS[fap]), 0])
+    corner_x = abs(float(v0[loop[0], 0]))
+    near = loop[(side * v0[loop, 0] > corner_x - 0.003) & (side * v0[loop, 0] < corner_x - 1e-5)]
+    drop = float(np.max(v0[near, 1] - vertices[near, 1])) * 1000
+    assert drop > 2.0, f"{drop:.2f} mm"
+    for name in ("upper inner", "upper outer"):
+        still = contours[name]
+        assert np.abs(vertices[still] - v0[still]).max() < 1e-5, name
+
+
+@pytest.mark.parametrize("fap", [8, 9, 55, 56])
+def test_a_dropped_upper_lip_turns_smoothly_into_its_corner(
+    face: Face, contours: dict[str, np.ndarray], fap: int
+) -> None:
+    """Dropping the upper lip beside the middle (8+, 9+, 55+, 56+ at 512),
+    no vertex of its contour turns by more than MAX_ADDED_TURN, up to the
+    corner's neighbour: the fall fades as cos² to the corner itself
+    (LIP_SIDE_CORNER); faded as a quarter cosine to 0.92..0.95 of the way
+    the lip turned back to the corner in one vertex (41 degrees at 8+, 50 at
+    55+)."""
+    loop = contours[SIDE_FAPS[fap]]
+    added = np.abs(added_turning(face, loop, posed(face, {fap: 512})))
+    assert added.max() < MAX_ADDED_TURN, f"{added.max():.1f} degrees"
