@@ -22,7 +22,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from realizer.scheduler.solver import Problem
@@ -148,6 +148,14 @@ TINY_ATTEMPTS = 3
 #: bigger reduced system goes to the numpy path (a pure-Python solve grows
 #: with the cube of it).
 TINY_VARIABLES = 16
+#: A spring of the reduced problem, ``w (x_i - x_j + c)^2``: i, j (-1: the
+#: zero node), c, w, and the rows of its phase (None for a spring made by
+#: joining two in series).
+_Spring = tuple[int, int, float, float, "list[int] | None"]
+#: An eliminated variable: (v, u1, d1, u2, d2, share) for ``x_v = x_u1 + d1
+#: + share (x_u2 + d2 - x_u1 - d1)``, or (v, u, d, -2, 0, 0) for ``x_v =
+#: x_u + d``.
+_Step = tuple[int, int, float, int, float, float]
 
 
 def tiny_times(problem: Problem, pdas_steps: int) -> list[float] | None:
@@ -238,11 +246,9 @@ def tiny_times(problem: Problem, pdas_steps: int) -> list[float] | None:
                     if v >= 0
                     else low_time
                 )
-            phases = chains[chain][2]
-            for p in checked:
-                phase = phases[p]
+            for p, low, high in checked:
                 duration = times[first + p + 1] - times[first + p]
-                if duration < phase.minimum - TOLERANCE or duration > phase.maximum + TOLERANCE:
+                if duration < low or duration > high:
                     broken = True
                     full.add(chain)
                     break
@@ -255,12 +261,13 @@ def tiny_times(problem: Problem, pdas_steps: int) -> list[float] | None:
 #: positions kept; the springs between kept positions (u, v, preferred,
 #: weight, minimum, maximum); each other position q as (q, u, v, preferred
 #: length from u, share of the stretch, preferred length of the spring), v
-#: -1 after the last kept point; and the phases whose bounds must be checked.
+#: -1 after the last kept point; and the phases whose bounds must be checked
+#: (position, minimum - TOLERANCE, maximum + TOLERANCE).
 _ChainPlan = tuple[
     tuple[int, ...],
     list[tuple[int, int, float, float, float, float]],
     list[tuple[int, int, int, float, float, float]],
-    tuple[int, ...],
+    tuple[tuple[int, float, float], ...],
 ]
 #: (id of a model's phases, positions held) -> (those phases, the plan).
 _CHAIN_PLANS: dict[tuple[int, tuple[int, ...]], tuple[tuple[Phase, ...], _ChainPlan]] = {}
@@ -309,7 +316,10 @@ def _chain_plan(phases: tuple[Phase, ...], held: tuple[int, ...]) -> _ChainPlan:
         before += phases[q - 1].preferred
         inner.append((q, last, -1, before, 0.0, 0.0))
     checked.extend(range(last, len(phases)))
-    plan: _ChainPlan = (kept, springs, inner, tuple(checked))
+    bounds = tuple(
+        (p, phases[p].minimum - TOLERANCE, phases[p].maximum + TOLERANCE) for p in checked
+    )
+    plan: _ChainPlan = (kept, springs, inner, bounds)
     if len(_CHAIN_PLANS) >= CHAIN_PLANS:
         _CHAIN_PLANS.clear()
     _CHAIN_PLANS[(id(phases), held)] = (phases, plan)
@@ -381,7 +391,7 @@ def _tiny_reduced(
                         strict=True):  # fmt: skip
         u, lo = index_of[u], index_of[lo]
         rows.append((var[u], var[lo], m - const[u] + const[lo]))
-    springs: list[list[Any]] = []  # [i, j, c, w, rows of its phase or None]
+    springs: list[_Spring] = []
     for a, b, (_, _, preferred, w, low, high) in zip(phase_a, phase_b, phase_springs,
                                                      strict=True):  # fmt: skip
         vi, vj = var[b], var[a]
@@ -392,7 +402,7 @@ def _tiny_reduced(
             own.append(len(rows))
             rows.append((vj, vi, shift - high))
         if vi != vj:
-            springs.append([vi, vj, shift - preferred, w, own])
+            springs.append((vi, vj, shift - preferred, w, own))
     for k in earliest_keys:
         rows.append((var[k], -1, -const[k]))
     for i, j, bound in rows:
@@ -436,7 +446,7 @@ def _tiny_reduced(
 
 def _tiny_attempt(
     keep: list[bool],
-    base_springs: list[list[Any]],
+    base_springs: list[_Spring],
     rows: list[tuple[int, int, float]],
     n_orderings: int,
     earliest_keys: list[int],
@@ -466,9 +476,10 @@ def _tiny_attempt(
         if j >= 0:
             touching[j].append(s)
     live = [True] * len(springs)
-    # (v, other, delta) for x_v = x_other + delta, or (v, u1, d1, u2, d2, share)
-    # for x_v = u1 + d1 + share (u2 + d2 - u1 - d1), undone in reverse order.
-    steps: list[tuple[Any, ...]] = []
+    # (v, other, delta, -2, 0, 0) for x_v = x_other + delta, or (v, u1, d1,
+    # u2, d2, share) for x_v = u1 + d1 + share (u2 + d2 - u1 - d1), undone
+    # in reverse order.
+    steps: list[_Step] = []
     gone = [False] * n
     work = [v for v in range(n) if not keep[v]]
     while work:
@@ -485,7 +496,7 @@ def _tiny_attempt(
             ends.append((j, -c, w) if i == v else (i, c, w))
         if len(mine) == 1:
             other, delta, _ = ends[0]
-            steps.append((v, other, delta))
+            steps.append((v, other, delta, -2, 0.0, 0.0))
             live[mine[0]] = False
             gone[v] = True
             if other >= 0 and not keep[other]:
@@ -497,7 +508,7 @@ def _tiny_attempt(
         live[mine[0]] = live[mine[1]] = False
         gone[v] = True
         if u1 != u2:
-            springs.append([u1, u2, d1 - d2, w1 * w2 / (w1 + w2), None])
+            springs.append((u1, u2, d1 - d2, w1 * w2 / (w1 + w2), None))
             live.append(True)
             for u in (u1, u2):
                 if u >= 0:
@@ -581,22 +592,14 @@ def _tiny_attempt(
     return x
 
 
-def _tiny_expand(
-    y: list[float], kept: list[int], steps: list[tuple[Any, ...]], n: int
-) -> list[float]:
+def _tiny_expand(y: list[float], kept: list[int], steps: list[_Step], n: int) -> list[float]:
     """Every variable's value (and a last 0.0 for index -1) from the kept ones."""
     x = [0.0] * (n + 1)
     for v, value in zip(kept, y, strict=True):
         x[v] = value
-    for at in range(len(steps) - 1, -1, -1):  # last first (mypyc cannot reverse this list)
-        step = steps[at]
-        if len(step) == 3:
-            v, other, delta = step
-            x[v] = x[other] + delta
-        else:
-            v, u1, d1, u2, d2, share = step
-            low = x[u1] + d1
-            x[v] = low + share * (x[u2] + d2 - low)
+    for v, u1, d1, u2, d2, share in reversed(steps):
+        low = x[u1] + d1
+        x[v] = low if u2 == -2 else low + share * (x[u2] + d2 - low)
     return x
 
 

@@ -194,7 +194,8 @@ def test_a_chain_held_at_its_ends_is_one_spring_in_series() -> None:
     assert inner[0][:3] == (1, 0, 3) and inner[0][3] == pytest.approx(0.5)
     assert inner[0][4] == pytest.approx(0.5 / 3.5)
     assert inner[-1][:3] == (4, 3, -1) and inner[-1][3] == pytest.approx(0.2)
-    assert checked == (0, 1, 2, 3)
+    assert [p for p, _, _ in checked] == [0, 1, 2, 3]
+    assert checked[2][1:] == (pytest.approx(0.1), pytest.approx(0.6))  # the bounds, checked
     # cached: asked again, the plan is not made again (compiled, the module
     # hands out equal tuples, not the same object)
     made = len(tiny._CHAIN_PLANS)
