@@ -298,7 +298,7 @@ class _Builder:
                         else:
                             self.order_(problem, anchor[0], anchor[1], key, offset, source, label)
         for key, time in self.fixed.items():
-            if key[0] not in skip and key in problem.keys:
+            if key[0] not in skip and problem.index_of(key) is not None:
                 fixed = Source("fixed", f"{key[0]}:{key[1]}", True)
                 self.equal(problem, key, 0.0, BLOCK_START, time - self.start, fixed,
                            f"{key[0]}:{key[1]} already passed at {time:g} s")  # fmt: skip
@@ -499,7 +499,7 @@ def schedule_block(
     #: each behaviour's (start, end), made once (the channel sweep and the
     #: plan's end read them)
     spans: dict[str, tuple[float, float]] = {}
-    firsts, indices = problem._first, problem.keys
+    firsts = problem._first
     for behaviour in block.behaviours:
         behaviour_id = behaviour.id
         model = models.get(behaviour_id)
@@ -510,7 +510,7 @@ def schedule_block(
         if first is not None:  # its keys are consecutive
             own = values[first : first + len(syncs)]
         else:
-            own = [values[indices[(behaviour_id, sync)]] for sync in syncs]
+            own = [values[problem._index((behaviour_id, sync))] for sync in syncs]  # all known
         spans[behaviour_id] = (min(own), max(own))
         # the lengths agree (one time per sync point): no strict check
         behaviours.append(ScheduledBehaviour(behaviour, dict(zip(syncs, own, strict=False))))

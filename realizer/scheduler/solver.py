@@ -50,7 +50,7 @@ from __future__ import annotations
 import itertools
 import math
 import operator
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -138,14 +138,29 @@ class Problem:
     """Sync points, phases and constraints of one block (or several).
 
     ``keys`` maps every sync point to its index (the order of first
-    mention; :data:`BLOCK_START` is 0). ``phases``, ``equalities``,
+    mention; :data:`BLOCK_START` is 0); it is made when read, since the
+    solvers need only the number of keys (:attr:`size`): a behaviour added
+    with new keys (the usual case) is recorded as the index of its first
+    key and its sync names' positions, not as one entry per sync point.
+    ``phases``, ``equalities``,
     ``orderings`` and ``starts`` say what was added, in the caller's terms;
     they are made on demand (only a conflict, a test or a tool reads them)
     from what the methods record. The solvers read the index lists (the
     private fields), so a problem is only ever changed through the methods.
     """
 
-    keys: dict[Key, int] = field(default_factory=dict)
+    #: how many keys (sync points) there are; they are 0 .. size - 1
+    size: int = field(default=0, init=False)
+    #: the keys with an entry of their own: the block start, keys named
+    #: before (or without) their behaviour, and those of behaviours whose
+    #: keys were not all new; the others are found by :attr:`_first`
+    _named: dict[Key, int] = field(default_factory=dict, repr=False)
+    #: the behaviour ids of :attr:`_named`'s keys
+    _named_ids: set[str] = field(default_factory=set, repr=False)
+    #: behaviour id -> its sync names' positions, for those in :attr:`_first`
+    _positions: dict[str, Mapping[str, int]] = field(default_factory=dict, repr=False)
+    #: :attr:`keys` as last made (valid while it has :attr:`size` entries)
+    _keys: dict[Key, int] = field(default_factory=dict, repr=False)
     #: each behaviour as added: id, sync names, phases, source, and the index
     #: of its first key (consecutive keys) or the list of its key indices
     _chains: list[tuple[str, tuple[str, ...], tuple[Phase, ...], Source, int | list[int]]] = field(
@@ -186,6 +201,32 @@ class Problem:
         self._index(BLOCK_START)
 
     @property
+    def keys(self) -> dict[Key, int]:
+        """Every sync point and its index, in index order."""
+        made = self._keys
+        if len(made) == self.size:
+            return made
+        names: list[Key] = [BLOCK_START] * self.size
+        first_of = self._first
+        for behaviour_id, syncs, _, _, first in self._chains:
+            if isinstance(first, int) and first_of.get(behaviour_id) == first:
+                names[first : first + len(syncs)] = [(behaviour_id, sync) for sync in syncs]
+        for key, index in self._named.items():
+            names[index] = key
+        made = self._keys = dict(zip(names, range(self.size), strict=True))
+        return made
+
+    def index_of(self, key: Key) -> int | None:
+        """The index of ``key``, or None if the problem does not have it."""
+        behaviour_id, sync = key
+        first = self._first.get(behaviour_id)
+        if first is not None:
+            position = self._positions[behaviour_id].get(sync)
+            if position is not None:
+                return first + position
+        return self._named.get(key)
+
+    @property
     def phases(self) -> list[tuple[Key, Key, Phase, Source]]:
         """Every phase as (earlier key, later key, phase, source), in add order."""
         found: list[tuple[Key, Key, Phase, Source]] = []
@@ -210,10 +251,11 @@ class Problem:
         return [_Relation(*given) for given in self._order_given]
 
     def _index(self, key: Key) -> int:
-        keys = self.keys
-        index = keys.get(key)
+        index = self.index_of(key)
         if index is None:
-            index = keys[key] = len(keys)
+            index = self._named[key] = self.size
+            self.size = index + 1
+            self._named_ids.add(key[0])
             self._owner.append(-1)
         return index
 
@@ -225,7 +267,9 @@ class Problem:
         if len(phases) != len(syncs) - 1:
             raise ValueError(f"{len(syncs)} sync points need {len(syncs) - 1} phases")
         table = list(itertools.chain.from_iterable(map(_PHASE_FIELDS, phases)))
-        self._add(behaviour_id, tuple(syncs), phases, table, source)
+        syncs = tuple(syncs)
+        positions = {sync: position for position, sync in enumerate(syncs)}
+        self._add(behaviour_id, syncs, phases, table, source, positions)
 
     def add_model(self, behaviour_id: str, model: TimingModel, source: Source) -> int:
         """:meth:`add_behaviour` with a timing model's syncs and phases.
@@ -234,7 +278,9 @@ class Problem:
         new (the usual case) they are that index and the ones after it,
         in the model's order (``model.positions``).
         """
-        return self._add(behaviour_id, model.syncs, model.phases, model.table, source)
+        return self._add(
+            behaviour_id, model.syncs, model.phases, model.table, source, model.positions
+        )
 
     def _add(
         self,
@@ -243,31 +289,33 @@ class Problem:
         phases: tuple[Phase, ...],
         table: Iterable[float],
         source: Source,
+        positions: Mapping[str, int],
     ) -> int:
         chain = self._behaviours
         self._behaviours += 1
-        known = self.keys
-        first = len(known)
+        first = self.size
         size = len(syncs)
-        keys = [(behaviour_id, sync) for sync in syncs]
-        fresh = known.keys().isdisjoint(keys)
-        if fresh:
-            last = first + size
-            known.update(zip(keys, range(first, last), strict=False))
-            fresh = len(known) == last  # else a key repeats within the behaviour
-            if not fresh:  # undo: all of them were new
-                for key in keys:
-                    known.pop(key, None)
-        if fresh:  # all new and distinct: consecutive indices
+        first_of = self._first
+        if (
+            behaviour_id not in first_of
+            and behaviour_id not in self._named_ids
+            and len(positions) == size  # no sync name repeats
+        ):  # all new and distinct: consecutive indices
+            last = self.size = first + size
             self._owner.extend([chain] * size)
-            self._first[behaviour_id] = first
+            first_of[behaviour_id] = first
+            self._positions[behaviour_id] = positions
             self._chains.append((behaviour_id, syncs, phases, source, first))
             self._starts.append(first)
             self._phase_a.extend(range(first, last - 1))
             self._phase_b.extend(range(first + 1, last))
         else:  # known keys keep their place
-            self._first.pop(behaviour_id, None)
-            indices = [self._index(key) for key in keys]
+            earlier = first_of.pop(behaviour_id, None)
+            if earlier is not None:  # the same id added before: its keys get entries
+                for sync, position in self._positions.pop(behaviour_id).items():
+                    self._named[(behaviour_id, sync)] = earlier + position
+                self._named_ids.add(behaviour_id)
+            indices = [self._index((behaviour_id, sync)) for sync in syncs]
             owner = self._owner
             for index in indices:
                 if owner[index] >= 0 and owner[index] != chain:
@@ -283,10 +331,10 @@ class Problem:
 
     def equal(self, a: Key, ka: float, b: Key, kb: float, source: Source) -> None:
         """``t_a + ka == t_b + kb``."""
-        keys = self.keys
-        index = keys.get(a)
+        index_of = self.index_of
+        index = index_of(a)
         self._tie_a.append(self._index(a) if index is None else index)
-        index = keys.get(b)
+        index = index_of(b)
         self._tie_b.append(self._index(b) if index is None else index)
         self._tie_d.append(kb - ka)
         self._tie_given.append((a, ka, b, kb, source))
@@ -377,7 +425,7 @@ def solve(problem: Problem) -> dict[Key, float]:
     (up to :data:`DENSE_KEYS`) take :func:`solve_dense`, the others
     :func:`solve_sparse`; all give the same times.
     """
-    size = len(problem.keys)
+    size = problem.size
     if size <= TINY_KEYS:
         times = _tiny_times(problem)
         if times is not None:
@@ -389,7 +437,7 @@ def solve(problem: Problem) -> dict[Key, float]:
 
 def solve_times(problem: Problem) -> list[float]:
     """:func:`solve`'s times as a list in the order of ``problem.keys`` (no dict)."""
-    size = len(problem.keys)
+    size = problem.size
     if size <= TINY_KEYS:
         times = _tiny_times(problem)
         if times is not None:
@@ -444,8 +492,7 @@ def _sparse_times(problem: Problem) -> list[float]:
     """:func:`solve_sparse`'s times in key order."""
     scipy = _scipy()
     sp, csgraph = scipy.sparse, scipy.sparse.csgraph
-    keys = problem.keys
-    n_keys = len(keys)
+    n_keys = problem.size
     # The problem's index lists become arrays in one call each.
     table = np.array(problem._phase_table, dtype=float).reshape(-1, 4)
     phase_a = np.array(problem._phase_a, dtype=np.int64)
@@ -463,7 +510,7 @@ def _sparse_times(problem: Problem) -> list[float]:
         conflict = find_conflict(problem)
         raise Infeasible(conflict or frozenset(), "contradictory equalities")
     n_classes = int(key_class.max(initial=-1)) + 1
-    block = keys[BLOCK_START]
+    block = 0  # BLOCK_START's index
     pinned_class = int(key_class[block])
     # The pinned class's value makes t_block = 0.
     pinned_value = -float(key_offset[block])
@@ -641,7 +688,7 @@ def _dense_times(problem: Problem) -> list[float]:
     found by Bellman-Ford), so results equal the sparse path's (tests
     compare them on random problems).
     """
-    n_keys = len(problem.keys)
+    n_keys = problem.size
     phase_a, phase_b, flat = problem._phase_a, problem._phase_b, problem._phase_table
     table = np.array(flat, dtype=float).reshape(-1, 4)
     # Equality classes with offsets, t_key = t_root + offset[key]: the ties

@@ -231,7 +231,7 @@ def tiny_times(problem: Problem, pdas_steps: int) -> list[float] | None:
         reduced = _tiny_reduced(problem, kept_keys, springs, pdas_steps)
         if reduced is None:
             return None
-        times = [0.0] * len(problem.keys)
+        times = [0.0] * problem.size
         for k, t in zip(kept_keys, reduced, strict=True):
             times[k] = t
         broken = False
@@ -380,7 +380,7 @@ def _tiny_reduced(
     owner, n_chains = problem._owner, problem._behaviours
     node = [owner[k] if owner[k] >= 0 else n_chains + k for k in kept_keys].__getitem__
     group, pinned_comp, pulled = _cost_components(
-        problem, ties, node, n_chains + len(problem.keys), index_of
+        problem, ties, node, n_chains + problem.size, index_of
     )
 
     # Every row x_i - x_j >= b of the full problem (index -1: zero), the

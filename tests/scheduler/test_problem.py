@@ -86,6 +86,34 @@ def test_a_behaviour_naming_one_sync_twice_is_still_one_chain() -> None:
     assert problem._first == {} and problem._phase_a == [1] and problem._phase_b == [1]
 
 
+def test_keys_are_made_when_read_and_name_every_index_once() -> None:
+    # A behaviour with new keys is recorded by its first index alone; keys
+    # named before their behaviour, an id added twice and a sync named twice
+    # get entries of their own. keys (made on demand) and index_of must give
+    # each key the index the solvers use, in index order.
+    problem = Problem()
+    problem.equal(("c", "end"), 0.0, BLOCK_START, 2.0, Source("fixed", "c", True))  # c unseen
+    problem.add_model("a", NOD, Source("behaviour", "a"))
+    problem.add_model("c", FACE, Source("behaviour", "c"))  # c:end known: not consecutive
+    problem.add_model("a", FACE, Source("behaviour", "a"))  # a again: a:start, a:end shared
+    problem.add_behaviour("d", ("start", "start"), [Phase(1.0)], Source("behaviour", "d"))
+    problem.add_model("e", FACE, Source("behaviour", "e"))
+    keys = problem.keys
+    assert list(keys.values()) == list(range(problem.size)) and len(keys) == problem.size
+    assert keys[("c", "end")] == 1 and keys[("a", "start")] == 2 and keys[("e", "start")] == 10
+    assert [key[0] for key in keys][1:] == ["c", *"aaaa", "c", "c", "a", "d", *"eee"]
+    for key, index in keys.items():
+        assert problem.index_of(key) == index
+    assert problem.index_of(("a", "nowhere")) is None and problem.index_of(("z", "start")) is None
+    assert problem._first == {"e": 10}  # the only behaviour added with all-new keys
+    # a key named after its behaviour was added gets the next index and is listed
+    problem.equal(("e", "relax"), 0.0, ("e", "end"), 0.5, Source("behaviour", "e"))
+    assert problem.keys[("e", "relax")] == problem.size - 1 == 13
+    times = solve(problem)
+    assert times[("c", "end")] == pytest.approx(2.0, abs=1e-9)
+    assert list(times) == list(problem.keys)
+
+
 def test_the_face_engine_plans_each_shape_once_and_keeps_a_bounded_cache(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
