@@ -22,16 +22,16 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 if TYPE_CHECKING:
     from realizer.scheduler.solver import Problem
     from realizer.scheduler.timing import Phase
 
 #: Weight of the start-early pull relative to the mean phase weight.
-PULL = 1e-3
+PULL: Final = 1e-3
 #: Constraint tolerance, seconds.
-TOLERANCE = 1e-9
+TOLERANCE: Final = 1e-9
 
 
 # -- union-find helpers (the dense path's too) -----------------------------------
@@ -143,11 +143,11 @@ class _Forest:
 
 #: How often :func:`tiny_times` solves again, keeping the points whose
 #: eliminated bounds its last answer broke, before it leaves the problem to numpy.
-TINY_ATTEMPTS = 3
+TINY_ATTEMPTS: Final = 3
 #: The most variables :func:`tiny_times` keeps after eliminating chains; a
 #: bigger reduced system goes to the numpy path (a pure-Python solve grows
 #: with the cube of it).
-TINY_VARIABLES = 16
+TINY_VARIABLES: Final = 16
 #: A spring of the reduced problem, ``w (x_i - x_j + c)^2``: i, j (-1: the
 #: zero node), c, w, and the rows of its phase (None for a spring made by
 #: joining two in series).
@@ -272,7 +272,7 @@ _ChainPlan = tuple[
 #: (id of a model's phases, positions held) -> (those phases, the plan).
 _CHAIN_PLANS: dict[tuple[int, tuple[int, ...]], tuple[tuple[Phase, ...], _ChainPlan]] = {}
 #: At most this many plans are kept (then the cache starts again).
-CHAIN_PLANS = 4096
+CHAIN_PLANS: Final = 4096
 
 
 def _chain_plan(phases: tuple[Phase, ...], held: tuple[int, ...]) -> _ChainPlan:
