@@ -232,7 +232,7 @@ def tiny_times(problem: Problem, pdas_steps: int) -> list[float] | None:
         if reduced is None:
             return None
         times = [0.0] * problem.size
-        for k, t in zip(kept_keys, reduced, strict=True):
+        for k, t in zip(kept_keys, reduced):
             times[k] = t
         broken = False
         for chain, entry in enumerate(plans):
@@ -346,8 +346,8 @@ def _tiny_reduced(
     phase_a = [index_of[spring[0]] for spring in phase_springs]
     phase_b = [index_of[spring[1]] for spring in phase_springs]
     # Equality classes, as _dense_times.
-    ties = list(zip(tie_a, tie_b, problem._tie_d, strict=True))
-    for a, b, spring in zip(phase_a, phase_b, phase_springs, strict=True):
+    ties = list(zip(tie_a, tie_b, problem._tie_d))
+    for a, b, spring in zip(phase_a, phase_b, phase_springs):
         if spring[5] - spring[4] <= TOLERANCE:
             ties.append((b, a, spring[4]))
     classes = _equality_classes(ties, n_keys)
@@ -362,10 +362,10 @@ def _tiny_reduced(
     pinned_value = -offset[0]
     roots = [k for k in range(n_keys) if parent[k] == k and k != pinned]
     n = len(roots)
-    var_of_root = dict(zip(roots, range(n), strict=True))
+    var_of_root = dict(zip(roots, range(n)))
     var_of_root[pinned] = -1
     var = [var_of_root[r] for r in parent]
-    const = [o + pinned_value if r == pinned else o for r, o in zip(parent, offset, strict=True)]
+    const = [o + pinned_value if r == pinned else o for r, o in zip(parent, offset)]
     earliest: dict[int, int] = {}
     for k in range(n_keys):
         r = parent[k]
@@ -388,12 +388,12 @@ def _tiny_reduced(
     # spring's phase owns.
     rows: list[tuple[int, int, float]] = []
     for u, lo, m in zip(problem._order_upper, problem._order_lower, problem._order_min,
-                        strict=True):  # fmt: skip
+                        ):  # fmt: skip
         u, lo = index_of[u], index_of[lo]
         rows.append((var[u], var[lo], m - const[u] + const[lo]))
     springs: list[_Spring] = []
     for a, b, (_, _, preferred, w, low, high) in zip(phase_a, phase_b, phase_springs,
-                                                     strict=True):  # fmt: skip
+                                                     ):  # fmt: skip
         vi, vj = var[b], var[a]
         shift = const[b] - const[a]
         own = [len(rows)]
@@ -431,10 +431,10 @@ def _tiny_reduced(
         if x is None:
             return None
         slack = [x[i] - x[j] - b for i, j, b in rows]
-        if min(slack, default=0.0) >= -TOLERANCE:
-            return [x[v] + c for v, c in zip(var, const, strict=True)]
+        if not slack or min(slack) >= -TOLERANCE:
+            return [x[v] + c for v, c in zip(var, const)]
         more = False
-        for (i, j, _), value in zip(rows, slack, strict=True):
+        for (i, j, _), value in zip(rows, slack):
             if value < -TOLERANCE:
                 for v in (i, j):
                     if v >= 0 and not keep[v]:
@@ -573,11 +573,11 @@ def _tiny_attempt(
                 first[comp] = t
         x = [
             value - first[comp] if comp != pinned_comp else value
-            for value, comp in zip(x, comp_of_var, strict=False)
+            for value, comp in zip(x, comp_of_var)
         ] + [0.0]
     y = [x[v] for v in kept]
     y.append(0.0)  # index -1
-    if min((y[i] - y[j] - b for i, j, b in reduced_rows), default=0.0) < -TOLERANCE:
+    if reduced_rows and min([y[i] - y[j] - b for i, j, b in reduced_rows]) < -TOLERANCE:
         # Inequalities: the active-set method on the reduced problem. With
         # free groups, which rows the pulled optimum holds decides where
         # the polish leaves them, and the reduced problem may hold others:
@@ -595,7 +595,7 @@ def _tiny_attempt(
 def _tiny_expand(y: list[float], kept: list[int], steps: list[_Step], n: int) -> list[float]:
     """Every variable's value (and a last 0.0 for index -1) from the kept ones."""
     x = [0.0] * (n + 1)
-    for v, value in zip(kept, y, strict=True):
+    for v, value in zip(kept, y):
         x[v] = value
     for v, u1, d1, u2, d2, share in reversed(steps):
         low = x[u1] + d1
@@ -606,7 +606,7 @@ def _tiny_expand(y: list[float], kept: list[int], steps: list[_Step], n: int) ->
 def _tiny_solve(matrix: list[list[float]], rhs: list[float]) -> list[float] | None:
     """Gaussian elimination with partial pivoting on a small dense system (None: singular)."""
     size = len(rhs)
-    a = [[*line, value] for line, value in zip(matrix, rhs, strict=True)]
+    a = [[*line, value] for line, value in zip(matrix, rhs)]
     for col in range(size):
         pivot, largest = col, abs(a[col][col])
         for r in range(col + 1, size):
@@ -692,17 +692,18 @@ def _tiny_active_set(
             return None
         y = solution[:m]
         multipliers = [0.0] * len(rows)
-        for r, value in zip(working, solution[m:], strict=True):
+        for r, value in zip(working, solution[m:]):
             multipliers[r] = value
-        scale = 1e-9 * (1.0 + max((abs(value) for value in multipliers), default=0.0))
+        scale = 1e-9 * (1.0 + (max([abs(value) for value in multipliers]) if multipliers else 0.0))
         extended = [*y, 0.0]
         slack = [extended[i] - extended[j] - b for i, j, b in rows]
         predicted = [
-            (on and mu >= -scale) or s < -TOLERANCE
-            for on, mu, s in zip(active, multipliers, slack, strict=True)
+            (on and mu >= -scale) or s < -TOLERANCE for on, mu, s in zip(active, multipliers, slack)
         ]
         if predicted == active:
-            if min(slack, default=0.0) >= -TOLERANCE and min(multipliers, default=0.0) >= -scale:
+            if (not slack or min(slack) >= -TOLERANCE) and (
+                not multipliers or min(multipliers) >= -scale
+            ):
                 return y, working
             return None
         signature = tuple(predicted)
