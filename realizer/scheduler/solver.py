@@ -52,7 +52,7 @@ import math
 import operator
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -87,13 +87,15 @@ BLOCK_START: Key = ("bml", "start")
 PDAS_STEPS = 50
 
 
-@dataclass(frozen=True, slots=True)
-class Source:
+class Source(NamedTuple):
     """Where a constraint comes from, so that a conflict can be explained.
 
     ``kind`` is ``behaviour`` (its own sync attributes and phases),
     ``constraint`` (a ``<constraint>`` element; ``id`` its id or position),
     ``fixed`` (a time already consumed) or ``block`` (nothing before the block).
+    A named tuple (immutable, hashable, compared by value), which the planner
+    makes for every behaviour of every block at a third of a frozen
+    dataclass's cost.
     """
 
     kind: str
