@@ -16,7 +16,8 @@ For 10, 100, 1,000 and 10,000 behaviours (``quick``: up to 1,000), and the
 same blocks without the ``<after>`` constraints (one KKT solve, no active
 set), it prints the time of :func:`realizer.scheduler.plan.schedule_block` (timing models,
 problem building, solving), the time of
-:func:`realizer.scheduler.solver.solve` alone on the prebuilt problem, the
+:func:`realizer.scheduler.solver.solve_times` (what schedule_block calls:
+the times as a list) alone on the prebuilt problem, the
 growth exponent fitted on log-log, and the 1,000-behaviour time against the
 goal of 10 ms; then blocks of 1 to 10 behaviours against 100 us. Times are
 the CPU time of the thread (:data:`_timing.CPU_CLOCK`), best of several
@@ -42,7 +43,7 @@ from _timing import CPU_CLOCK, best_of, figure
 from realizer.bml_parser import BML_NS, Block, parse_bml
 from realizer.engines import EngineRegistry
 from realizer.scheduler.plan import _Builder, schedule_block
-from realizer.scheduler.solver import Problem, solve
+from realizer.scheduler.solver import Problem, solve_times
 
 #: The goal for a block of 1,000 behaviours with cycles (seconds).
 GOAL = 0.010
@@ -136,7 +137,7 @@ def measure(
         problem = prebuilt_problem(block, registry)
 
         def solve_it(problem: Problem = problem) -> None:
-            solve(problem)
+            solve_times(problem)  # what schedule_block calls: times as a list
 
         def plan_it(block: Block = block) -> None:
             schedule_block(block, registry=registry)
