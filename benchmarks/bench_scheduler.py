@@ -26,7 +26,8 @@ With active inequalities the primal-dual active-set method takes a few
 sparse factorisations whatever their number; should a solver
 change make the time grow much faster than linearly again, a size whose
 projected time per call exceeds :data:`PROJECTED_LIMIT` is reported, not
-timed.
+timed. The first line says whether the tiny path (``realizer.scheduler.tiny``)
+runs compiled or as Python (``REALIZER_PURE=1`` times the sources).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _timing import CPU_CLOCK, best_of, figure
 
+from realizer import compiled
 from realizer.bml_parser import BML_NS, Block, parse_bml
 from realizer.engines import EngineRegistry
 from realizer.scheduler.plan import _Builder, schedule_block
@@ -165,6 +167,8 @@ def measure(
 
 def run(quick: bool = False) -> None:
     registry = EngineRegistry.standard()
+    # the tiny path compiled (mypyc, scripts/build_compiled.py) or pure Python (REALIZER_PURE=1)
+    print(f"compiled modules: {compiled.describe()}")
     results = {}
     for title, orderings, sizes in (
         ("rings of 3 (4 s span) and chains, one <after> per 6 behaviours, all active",
