@@ -105,6 +105,31 @@ def test_disgusted_raises_the_upper_lip_and_wrinkles_the_nose(face: Face) -> Non
     assert abs(region_motion(face, table_5, "nose wings")[1]) < 0.5
 
 
+def nose_root_motion(face: Face, vertices: np.ndarray) -> float:
+    """Mean vertical displacement (mm) of the skin within 8 mm of the
+    midpoint between the inner brows (4.1, 4.2): the root of the nose."""
+    rest = np.asarray(face.vertices, dtype=np.float64)
+    skin = face.part("skin")
+    middle = (face.feature_position("4.1") + face.feature_position("4.2")) / 2
+    near = skin[np.linalg.norm(rest[skin] - middle, axis=1) < 0.008]
+    return float((vertices[near, 1] - rest[near, 1]).mean() * 1000)
+
+
+def test_disgusted_wrinkles_the_nose_root_and_knits_the_brows(face: Face) -> None:
+    # at first sight: the additions' nose wrinkle (F63 [130, 230]) pulls the
+    # skin between the brows down and the inner brows come down with it
+    # (F31/F32); with F63 [70, 130] and Table 5's F33/F34 alone the root moved
+    # 0.2 mm and the inner brows 1.7 mm, and disgust did not read
+    disgusted = pose(face, "disgusted")
+    assert nose_root_motion(face, disgusted) < -3.0
+    assert region_motion(face, disgusted, "inner brows")[1] < -4.5
+    assert region_motion(face, disgusted, "nose wings")[1] > 4.0
+    assert region_motion(face, disgusted, "upper lip")[1] > 4.0
+    table_5 = pose(face, "disgusted", additions=False)
+    assert abs(nose_root_motion(face, table_5)) < 0.5
+    assert region_motion(face, table_5, "inner brows")[1] > -2.5
+
+
 def test_disgusted_turns_the_lip_corners_down_under_the_raised_upper_lip(face: Face) -> None:
     # AU 15 with AU 9 and 10: the corners go down while the upper lip rises;
     # Table 5's Disgust 0 left them still, a grimace more than disgust
@@ -199,3 +224,9 @@ def test_fap2_disgust_raises_the_upper_lip_wrinkles_the_nose_and_narrows_the_eye
     assert region_motion(face, disgust, "nose wings")[1] > 1.5
     assert region_motion(face, disgust, "lower lid margins")[1] > 1.0
     assert region_motion(face, disgust, "brows")[1] < -1.5
+    # at first sight: the brows knit over a wrinkled nose root (at F31..F34
+    # -60 and F63 110 the root moved 3 mm, the inner brows 4 mm)
+    assert nose_root_motion(face, disgust) < -4.0
+    assert region_motion(face, disgust, "inner brows")[1] < -6.0
+    assert region_motion(face, disgust, "inner brows")[0] > 2.0
+    assert region_motion(face, disgust, "nose wings")[1] > 6.5
