@@ -946,3 +946,157 @@ def test_a_moving_face_through_a_gateway_follows_serves_same_rule(cluster: Any) 
             sames += 1
     assert wholes >= 3 and sames >= 30, (wholes, sames)  # it moved, and rested
     assert msgpack.unpackb(joined[0])["type"] == "frame"
+
+
+# -- idle motion through the cluster ---------------------------------------------------
+
+
+class RestartedViewer(FakeViewer):
+    """A :class:`FakeViewer` a gateway can restart (the mesh again)."""
+
+    def __init__(self, *, same: bool) -> None:
+        super().__init__(same=same)
+        self.control: list[bytes] = []
+        self.latest: bytes | None = None
+        self.wants_model = False
+        self.wake = type("Wake", (), {"set": lambda self: None})()
+
+
+def test_a_viewer_restarted_after_the_new_owners_first_frame_gets_the_same_ticks() -> None:
+    """Regression: after a takeover the new owner's first tick per format
+    is whole (it has sent nothing yet), but that frame (a plain publish)
+    can reach a gateway before the lease's change (through the bucket's
+    stream) does. The gateway then restarted the viewers (the mesh again)
+    and dropped its last whole frames, so the ``same`` ticks that followed
+    reached none of them until the next key frame, up to a second later.
+    The last whole frame is kept (known by its content, the same picture
+    whichever worker encoded it) and moved to the next tick."""
+    import asyncio
+
+    from realizer.service import codec
+    from realizer.service.cluster.protocol import restamp
+
+    options = ViewOptions()
+
+    def frame(n: int) -> bytes:
+        fap = {"ids": bytes([3]), "values": b"\0\0\x80?"}
+        return codec.pack(codec.frame_message("anna", n, n / 60, options, fap=fap))  # type: ignore[arg-type]
+
+    same_viewer, every_viewer = RestartedViewer(same=True), RestartedViewer(same=False)
+    gateway = offline_gateway({"anna": [same_viewer, every_viewer]})
+    gateway.viewers["anna"] = {same_viewer, every_viewer}
+    gateway.meshes["anna"] = b"the mesh message"
+    rest = 44
+
+    async def scenario() -> None:
+        # the new owner's first tick (whole), then the lease change is seen
+        await publish(gateway, "anna", FrameTick(500, 500 / 60, rest, frame(500)))
+        await asyncio.sleep(0)
+        gateway._restart_viewers("anna")
+        for n in (501, 502):
+            await publish(gateway, "anna", FrameTick(n, n / 60, rest))
+            await asyncio.sleep(0)
+
+    asyncio.run(scenario())
+    for viewer in (same_viewer, every_viewer):
+        assert viewer.control == [b"the mesh message"]
+        assert viewer.got[:2] == [frame(500), restamp(frame(500), 501, 501 / 60)]
+    assert same_viewer.got[2:] == [codec.same_message(502)]
+    assert every_viewer.got[2:] == [restamp(frame(500), 502, 502 / 60)]
+    assert gateway.frames_unknown == 0
+
+
+def test_a_worker_takes_serves_idle_settings_from_flags_and_its_config_table(
+    tmp_path: Any,
+) -> None:
+    """``realizer worker`` has ``realizer serve``'s idle motion options and
+    defaults: --idle/--no-idle (on unless REALIZER_IDLE=0), --seed, the
+    ``[worker]`` table of a TOML file, and --print-config."""
+    import os
+    import subprocess
+    import sys
+
+    def worker(*args: str, idle_env: str | None = None) -> subprocess.CompletedProcess[str]:
+        env = {k: v for k, v in os.environ.items() if k != "REALIZER_IDLE"}
+        if idle_env is not None:
+            env["REALIZER_IDLE"] = idle_env
+        command = [sys.executable, "-m", "realizer", "worker", "--nats", "nats://127.0.0.1:1"]
+        return subprocess.run(
+            [*command, *args], capture_output=True, text=True, env=env, timeout=60, check=False
+        )
+
+    default = worker("--print-config")
+    assert default.returncode == 0, default.stderr
+    assert default.stdout.startswith("[worker]\n")
+    assert "idle = true\n" in default.stdout and "seed = 0\n" in default.stdout
+    assert "port = 0\n" in default.stdout and "[worker.limits]" in default.stdout
+    assert "idle = false\n" in worker("--print-config", idle_env="0").stdout
+    assert "idle = false\n" in worker("--print-config", "--no-idle").stdout
+    config = tmp_path / "realizer.toml"
+    config.write_text(
+        '[serve]\nstomp = "stomp://127.0.0.1:61613"\n\n'
+        '[worker]\nidle = false\nseed = 7\nvoice = "en-gb"\n\n[worker.limits]\ncharacters = 9\n'
+    )
+    from_file = worker("--config", str(config), "--print-config").stdout
+    assert "idle = false\n" in from_file and "seed = 7\n" in from_file
+    assert 'voice = "en-gb"\n' in from_file and "characters = 9\n" in from_file
+    flags_win = worker("--config", str(config), "--idle", "--seed", "8", "--print-config").stdout
+    assert "idle = true\n" in flags_win and "seed = 8\n" in flags_win
+    config.write_text('[worker]\nstomp = "stomp://127.0.0.1:61613"\n')
+    refused = worker("--config", str(config), "--print-config")
+    assert refused.returncode == 2 and "unknown setting 'stomp'" in refused.stderr
+
+
+def idle_faps(character: str, seed: int, epoch: float, t: float) -> dict[int, float]:
+    """The idle FAPs ``realizer serve``'s sessions give ``character`` at
+    session time ``t`` (realizer.service.assets), the motion's clock started
+    at Unix time ``epoch`` (a worker's frame 0)."""
+    import zlib
+
+    from realizer.face.idle import IDLE_FAPS, IdleMotion, IdleSettings
+
+    own = zlib.crc32(character.encode("utf-8"))
+    values, _ = IdleMotion(IdleSettings(seed=seed * 2**32 + own), offset=epoch).frame(t)
+    return {fap: float(values[fap - 1]) for fap in IDLE_FAPS}
+
+
+def assert_idle(frames: list[dict[str, Any]], character: str, epoch: float) -> None:
+    from realizer.service.client import ViewClient
+
+    moving = set()
+    for frame in frames:
+        got = ViewClient.faps(frame)
+        wanted = idle_faps(character, 3, epoch, frame["t"])
+        assert set(got) == set(wanted), frame["n"]
+        for fap, value in wanted.items():
+            assert got[fap] == pytest.approx(value, rel=1e-5, abs=1e-3), (frame["n"], fap)
+        moving.add(tuple(sorted(got.items())))
+    assert len(moving) > len(frames) // 2  # the face moves: few ticks repeat one
+
+
+@pytest.mark.slow
+def test_workers_idle_motion_is_serves_and_carries_on_after_a_takeover(cluster: Any) -> None:
+    """Workers run ``realizer serve``'s idle motion (on with --idle, its
+    seed per character), on the wall clock: a viewer through a gateway sees
+    each frame's idle FAPs as serve's sessions make them at that moment;
+    after the owner is killed the new owner's frames carry the same motion
+    on (the same seed, the pose of that moment) while ``n`` and ``t``
+    follow the new owner's clock."""
+    from realizer.service.client import ViewClient
+
+    workers, (gateway,) = cluster.start(
+        workers=2, gateways=1, worker_args=["--idle", "--seed", "3"]
+    )
+    with ViewClient(f"ws://127.0.0.1:{gateway.port}", character="ida", same=True) as view:
+        before = list(view.frames(count=30, timeout=10 * UNIT))
+        owner = owner_of(workers, "ida")
+        (survivor,) = [w for w in workers if w is not owner]
+        assert_idle(before, "ida", health(owner.port)["idleEpoch"])
+        owner.kill()
+        deadline = time.monotonic() + 20 * UNIT
+        while view.receive(timeout=20 * UNIT)["type"] != "mesh":
+            assert time.monotonic() < deadline
+        after = list(view.frames(count=30, timeout=10 * UNIT))
+        assert owner_of([survivor], "ida") is survivor
+        assert_idle(after, "ida", health(survivor.port)["idleEpoch"])
+        assert not any(frame.get("same") for frame in before + after)

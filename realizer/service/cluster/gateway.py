@@ -646,11 +646,20 @@ class ClusterGateway(RealizerService):
 
     def _restart_viewers(self, character: str) -> None:
         """The character moved to another worker: its viewers start again
-        from the mesh message (its frames now carry the new owner's clock)."""
+        from the mesh message (its frames now carry the new owner's clock).
+
+        The last whole frames are kept: they are known by their content id,
+        which means the same picture whichever worker encoded it (the same
+        face on every worker), and a whole frame moved to a tick's ``n`` and
+        ``t`` is what that tick's owner would have encoded. Regression: they
+        were dropped here, and the new owner's first tick (whole: it has
+        sent nothing yet) can reach this gateway before the lease change
+        does (a frame is a plain publish, the lease's change comes through
+        the bucket's stream); its viewers, restarted after it, then got
+        nothing on the ``same`` ticks that followed until the next key
+        frame, up to a second later."""
         for key in [k for k in self._newest if k[0] == character]:
             del self._newest[key]  # the old owner's frames must not follow the new mesh
-        for key in [k for k in self._whole if k[0] == character]:
-            del self._whole[key]
         mesh = self.meshes.get(character)
         if mesh is None:
             return
