@@ -5,8 +5,12 @@ the characters whose lease it holds in the NATS server's key-value bucket,
 and publishes their feedback and frames on NATS subjects; gateways
 (``realizer gateway``) serve the clients. Its own port serves only /health
 and /version. On SIGTERM it hands its characters over (running blocks
-finish first, up to --drain seconds) and exits 0. Needs the ``cluster``
-extra (nats-py) and a NATS server with JetStream (``nats-server -js``).
+finish first, up to --drain seconds) and exits 0. Its characters have
+realizer serve's idle motion (blinks, saccades, breathing, head motion; on
+unless --no-idle or REALIZER_IDLE=0) and speech; settings come from flags
+and the [worker] table of a TOML file (--config; --print-config shows the
+result). Needs the ``cluster`` extra (nats-py) and a NATS server with
+JetStream (``nats-server -js``).
 """
 
 from __future__ import annotations
@@ -14,9 +18,10 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
-from realizer.commands import plain_text
+from realizer.commands import add_idle_options, error_line, plain_text
 
 
 def register(subparsers: Any) -> None:
@@ -28,13 +33,23 @@ def register(subparsers: Any) -> None:
         "characters=100",
     )
     parser.add_argument(
-        "--host", default="127.0.0.1", help="address of /health (default 127.0.0.1)"
+        "--config", type=Path, metavar="FILE", help="a TOML settings file (its [worker] table)"
     )
     parser.add_argument(
-        "--port", type=int, default=0, help="port of /health (default 0 = any free)"
+        "--print-config", action="store_true", help="print the effective settings and exit"
     )
-    parser.add_argument("--fps", type=float, default=60.0, help="frames per second (default 60)")
-    parser.add_argument("--face", default=None, metavar="PATH", help="face parameter file")
+    parser.add_argument("--host", help="address of /health (default 127.0.0.1)")
+    parser.add_argument("--port", type=int, help="port of /health (default 0 = any free)")
+    parser.add_argument("--fps", type=float, help="frames per second (default 60)")
+    parser.add_argument("--face", metavar="PATH", help="face parameter file")
+    add_idle_options(parser)
+    parser.add_argument("--tts", choices=("espeak", "piper"), help="speech backend (espeak)")
+    parser.add_argument(
+        "--voice", default=None, help="default voice: a language tag such as en-gb (en)"
+    )
+    parser.add_argument(
+        "--piper-model", default=None, metavar="PATH.onnx", help="Piper voice model (--tts piper)"
+    )
     parser.add_argument(
         "--drain",
         type=float,
@@ -42,7 +57,27 @@ def register(subparsers: Any) -> None:
         metavar="SECONDS",
         help="on SIGTERM, how long running blocks may finish (default 10)",
     )
-    parser.set_defaults(run=run)
+    # None: not given, so the settings file or the default decides (as serve)
+    parser.set_defaults(run=run, idle=None, seed=None, character=None, planner_processes=None)
+
+
+def worker_settings(args: argparse.Namespace) -> Any:
+    """The worker's effective :class:`~realizer.service.settings.ServeSettings`:
+    ``realizer serve``'s defaults (but port 0), then the file's ``[worker]``
+    table, then the flags given, by serve's rules (``idle``: on unless
+    ``REALIZER_IDLE=0``)."""
+    import os
+
+    from realizer.commands.serve import _limits
+    from realizer.service.settings import WORKER_KEYS, read_file, resolve
+
+    from_file: dict[str, Any] = {"port": 0}
+    if args.config is not None:
+        from_file.update(read_file(args.config, "worker", WORKER_KEYS))
+    flags = {key: getattr(args, key) for key in WORKER_KEYS}
+    flags["limits"] = _limits(args.limit)
+    environ = {k: v for k, v in os.environ.items() if k == "REALIZER_IDLE"}  # no tokens
+    return resolve(from_file, flags, environ)
 
 
 def cluster_parser(
@@ -89,39 +124,58 @@ def cluster_parser(
 
 
 def run(args: argparse.Namespace) -> int:
+    from realizer.errors import RealizerError
+
+    try:
+        settings = worker_settings(args)
+    except (RealizerError, ValueError) as exc:
+        print(error_line("worker", exc), file=sys.stderr)
+        return 2
+    if args.print_config:
+        from realizer.service.settings import to_toml
+
+        print(to_toml(settings, "worker"), end="")
+        return 0
+
     def build() -> tuple[Any, Callable[[int], str]]:
         import secrets
         from dataclasses import replace
 
-        from realizer.commands.serve import _limits
         from realizer.service.assets import face_assets, load_face, session_factory
         from realizer.service.cluster.worker import ClusterWorker
         from realizer.service.limits import DEFAULT_LIMITS
         from realizer.service.server import ServiceConfig
         from realizer.service.stage import Stage
 
-        limits = replace(DEFAULT_LIMITS, **_limits(args.limit))
+        limits = replace(DEFAULT_LIMITS, **settings.limits)
         # A worker's port serves only /health and /version, nothing a token
         # guards; a token nobody knows lets it bind to any address.
         config = ServiceConfig(
-            host=args.host,
-            port=args.port,
-            fps=args.fps,
+            host=settings.host,
+            port=settings.port,
+            fps=settings.fps,
             limits=limits,
             submit_token=secrets.token_hex(16),
-            planner_processes=args.planner_processes,
+            planner_processes=settings.planner_processes,
         )
         cluster = cluster_config(args, drain_timeout=args.drain)
-        face = load_face(args.face)
-        make_session = session_factory(face)
-        make_session(args.character)  # load the engines' data now, not on the clock
-        stage = Stage(make_session, limits, default_character=args.character)
+        face = load_face(settings.face)
+        speech = {
+            "tts": settings.tts,
+            "voice": settings.voice or "",
+            "model": settings.piper_model or "",
+        }
+        # The same sessions as realizer serve's: idle motion seeded by the
+        # seed and the character's id (realizer.service.assets).
+        make_session = session_factory(face, idle=settings.idle, seed=settings.seed, speech=speech)
+        make_session(settings.character)  # load the engines' data now, not on the clock
+        stage = Stage(make_session, limits, default_character=settings.character)
         worker = ClusterWorker(config, stage, face_assets(face), cluster)
 
         def ready(port: int) -> str:
             return (
                 f"realizer: worker {worker.worker_id} on {args.nats} "
-                f"(health http://{args.host}:{port}/health)"
+                f"(health http://{settings.host}:{port}/health)"
             )
 
         return worker, ready

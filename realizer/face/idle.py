@@ -6,7 +6,10 @@ with the upper lids following the eyes' pitch, breathing, and a slow micro
 motion of the head. Everything is a pure function of the seed and the time:
 :meth:`IdleMotion.frame` at ``now`` gives the same values whatever times
 were asked before, so two runs with the same seed are identical frame for
-frame, and tests can pin them.
+frame, and tests can pin them. ``offset`` (seconds, default 0) is added to
+every time asked: a cluster worker sets it to the Unix time of its clock's
+frame 0, so the motion follows the wall clock and every worker shows a
+character the same idle pose at the same moment (a takeover carries on).
 
 Figures follow the literature the thesis "Realization and high level
 specification of facial expressions for embodied agents" builds on for
@@ -76,8 +79,10 @@ _CHUNK_S = 30.0
 class IdleMotion:
     """Idle FAP values of one character; :meth:`frame` gives them at a time."""
 
-    def __init__(self, settings: IdleSettings | None = None) -> None:
+    def __init__(self, settings: IdleSettings | None = None, offset: float = 0.0) -> None:
         self.settings = settings or IdleSettings()
+        #: added to every time :meth:`frame` is asked for (see the module)
+        self.offset = offset
         self._cache: dict[tuple[str, int], np.ndarray] = {}
         self._targets: dict[int, tuple[float, float]] = {}
         self._shift_blinks: dict[int, bool] = {}
@@ -155,8 +160,10 @@ class IdleMotion:
     # -- the frame ----------------------------------------------------------------
 
     def frame(self, now: float) -> tuple[np.ndarray, np.ndarray]:
-        """(values (68,), mask (68,)) of the idle FAPs at ``now`` seconds."""
+        """(values (68,), mask (68,)) of the idle FAPs at ``now`` seconds
+        (plus :attr:`offset`)."""
         s = self.settings
+        now = now + self.offset
         values = np.zeros(68)
         mask = np.zeros(68, dtype=bool)
         for fap in IDLE_FAPS:

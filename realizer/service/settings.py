@@ -113,15 +113,31 @@ def _error(path: Path | str, message: str, line: int = 1, column: int = 1) -> Co
 
 def _line_of(text: str, key: str) -> int:
     """The line where ``key`` is set (for messages), or 1."""
-    setting = re.compile(rf"\s*\[?\s*(?:serve\.)?{re.escape(key)}\s*[=\].]")
+    setting = re.compile(rf"\s*\[?\s*(?:serve\.|worker\.)?{re.escape(key)}\s*[=\].]")
     for number, line in enumerate(text.splitlines(), 1):
         if setting.match(line):
             return number
     return 1
 
 
-def read_file(path: Path) -> dict[str, Any]:
-    """The ``[serve]`` table of a TOML file, checked; paths made relative to it."""
+#: The tables a settings file may hold: ``realizer serve``'s and ``realizer
+#: worker``'s (one file can configure both; each reads its own).
+TABLES = ("serve", "worker")
+#: The settings of a ``[worker]`` table: what a cluster worker shares with
+#: ``realizer serve`` (its clock, face, characters' idle motion and speech,
+#: planner and limits; host and port are those of its /health). The
+#: cluster's own options (--nats, --id, --lease-ttl, --drain) are flags.
+WORKER_KEYS = (
+    "host", "port", "fps", "face", "character", "idle", "seed", "tts", "voice",
+    "piper_model", "planner_processes",
+)  # fmt: skip
+
+
+def read_file(
+    path: Path, table: str = "serve", keys: tuple[str, ...] | None = None
+) -> dict[str, Any]:
+    """The ``[serve]`` (or ``table``) table of a TOML file, checked (only
+    ``keys`` and ``limits`` allowed, when given); paths made relative to it."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -135,11 +151,15 @@ def read_file(path: Path) -> dict[str, Any]:
         line, column = (int(found.group(1)), int(found.group(2))) if found else (1, 1)
         message = _TOML_POSITION.sub("", str(exc)).strip()
         raise _error(path, message, line, column) from None
-    unknown = set(data) - {"serve"}
+    unknown = set(data) - set(TABLES)
     if unknown:
         name = sorted(unknown)[0]
-        raise _error(path, f"unknown table {name!r}; expected [serve]", _line_of(text, name))
-    serve = data.get("serve", {})
+        expected = " or ".join(f"[{t}]" for t in TABLES)
+        raise _error(path, f"unknown table {name!r}; expected {expected}", _line_of(text, name))
+    serve = data.get(table, {})
+    if not isinstance(serve, dict):
+        raise _error(path, f"{table} must be a table ([{table}])", _line_of(text, table))
+    allowed = keys if keys is not None else tuple(_TYPES)
     out: dict[str, Any] = {}
     for key, value in serve.items():
         line = _line_of(text, key)
@@ -152,8 +172,8 @@ def read_file(path: Path) -> dict[str, Any]:
         if key == "limits":
             out["limits"] = _limits(value, path, text)
             continue
-        if key not in _TYPES:
-            known = ", ".join(sorted([*_TYPES, "limits"]))
+        if key not in allowed:
+            known = ", ".join(sorted([*allowed, "limits"]))
             raise _error(path, f"unknown setting {key!r}; known: {known}", line)
         wanted = _TYPES[key]
         if not isinstance(value, wanted) or (isinstance(value, bool) and bool not in wanted):
@@ -229,24 +249,26 @@ def _toml_value(value: Any) -> str:
     return repr(value)
 
 
-def to_toml(settings: ServeSettings) -> str:
-    """The effective settings as a TOML file; tokens shown only as set or not."""
-    lines = ["[serve]"]
-    for name in (
+def to_toml(settings: ServeSettings, table: str = "serve") -> str:
+    """The effective settings as a TOML file; tokens shown only as set or
+    not. ``table="worker"``: a ``[worker]`` table of :data:`WORKER_KEYS`."""
+    lines = [f"[{table}]"]
+    names = WORKER_KEYS if table == "worker" else (
         "host", "port", "fps", "face", "character", "avatar", "idle", "seed",
         "tts", "voice", "piper_model", "stomp", "stomp_layout", "stomp_bml_topic",
         "stomp_feedback_topic", "log_level", "log_format", "planner_processes",
-    ):  # fmt: skip
+    )  # fmt: skip
+    for name in names:
         value = getattr(settings, name)
         if value is None:
             lines.append(f"# {name}: not set")
         else:
             lines.append(f"{name} = {_toml_value(value)}")
-    for name, variable in TOKEN_VARIABLES.items():
+    for name, variable in TOKEN_VARIABLES.items() if table == "serve" else ():
         state = "set (***)" if getattr(settings, name) else "not set"
         lines.append(f"# {name}: {state}; from ${variable} or --{name.replace('_', '-')}")
     lines.append("")
-    lines.append("[serve.limits]")
+    lines.append(f"[{table}.limits]")
     effective = {f.name: getattr(DEFAULT_LIMITS, f.name) for f in fields(DEFAULT_LIMITS)}
     effective.update(settings.limits)
     for name in sorted(effective):

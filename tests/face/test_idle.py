@@ -195,3 +195,22 @@ def test_the_commands_turn_idle_motion_on_by_default_and_off_with_the_environmen
             words = ["render", "x.bml", "-o", "x.mp4"] if command is render else ["serve"]
             assert idle(parser.parse_args(words)) is expected
             assert idle(parser.parse_args([*words, "--no-idle"])) is False
+
+
+def test_an_offset_moves_the_motion_in_time_and_unix_times_still_blink() -> None:
+    """A worker's idle motion runs on the wall clock (``offset``: the Unix
+    time of its frame 0): two motions whose offsets differ by d agree when
+    asked d apart, and at Unix-size times the motion still blinks, looks
+    about and stays in its ranges (no precision lost)."""
+    settings = IdleSettings(seed=5)
+    epoch = 1_780_000_000.25
+    early = IdleMotion(settings, offset=epoch)
+    late = IdleMotion(settings, offset=epoch + 42.5)
+    for t in np.arange(0.0, 20.0, 1 / 60):
+        a, mask_a = early.frame(t + 42.5)
+        b, mask_b = late.frame(t)
+        assert np.array_equal(a, b) and np.array_equal(mask_a, mask_b)
+    lids = [early.frame(t)[0][18] for t in np.arange(0.0, 60.0, 1 / 60)]
+    assert max(lids) > 900  # shut in a blink
+    yaw = [early.frame(t)[0][22] / DEGREE_AU for t in np.arange(0.0, 60.0, 1 / 60)]
+    assert 0.5 < max(abs(y) for y in yaw) <= 4.0 + 1e-9

@@ -173,11 +173,14 @@ class ClusterWorker(RealizerService):
         }
         self._outbox_wake = asyncio.Event()
         self._claims: Subscription | None = None
+        self.idle_epoch = 0.0  # set at start
 
     # -- life cycle ---------------------------------------------------------------
 
     async def start(self) -> None:
         await super().start()
+        # the Unix time of this worker's frame 0: its characters' idle time
+        self.idle_epoch = time.time() - self.now()
         self.nats = await connect(self.cluster, self.worker_id)
         self.kv = await lease_bucket(self.nats)
         watcher = await self.kv.watchall()
@@ -246,6 +249,7 @@ class ClusterWorker(RealizerService):
             droppedMessages=self.dropped,
             framesWhole=self.frames_whole,
             framesSame=self.frames_same,
+            idleEpoch=self.idle_epoch,
             nats=bool(self.nats is not None and self.nats.is_connected),
             timings=summaries(self.timings),
         )
@@ -614,12 +618,17 @@ class ClusterWorker(RealizerService):
     async def _own(self, character: str, revision: int, *, for_viewer: bool = False) -> bool:
         assert self.nats is not None and self.kv is not None
         try:
-            self.stage.character(character, for_viewer=for_viewer)
+            found = self.stage.character(character, for_viewer=for_viewer)
         except Exception as exc:  # a limit reached meanwhile: give the lease back
             logger.warning("cannot run character %r: %s", character, exc)
             with contextlib.suppress(Exception):
                 await self.kv.delete(token(character), last=revision)
             return False
+        session = found.session
+        if session.idle is not None:
+            # The idle motion follows the wall clock here, not this worker's
+            # own (realizer.face.idle): a new owner carries on the pose.
+            session.idle.offset = self.idle_epoch
         owned = Owned(revision, time.monotonic())
         self.owned[character] = owned
         owned.subscription = await self.nats.subscribe(
