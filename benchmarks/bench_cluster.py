@@ -77,6 +77,11 @@ TAKEOVER_GOAL_S = 3.0
 
 BML_NS = "http://www.bml-initiative.org/bml/bml-1.0"
 
+#: Workers without idle motion, as bench_service starts ``realizer serve``
+#: (--no-idle): a face moves only for a probe block, so the first frame with
+#: FAPs set is the one that shows it, and a resting face is unchanged.
+NO_IDLE = ["--no-idle"]
+
 
 def health(port: int) -> dict[str, Any]:
     with urllib.request.urlopen(f"http://127.0.0.1:{port}/health", timeout=10) as reply:
@@ -232,7 +237,7 @@ def run_idle(seconds: float) -> None:
     process, port = bench_service.start_server(FPS, [])
     try:
         with LocalCluster() as cluster:
-            _, (gateway,) = cluster.start(workers=1, gateways=1)
+            _, (gateway,) = cluster.start(workers=1, gateways=1, worker_args=NO_IDLE)
             for name, vertices in bench_service.VIEWER_FORMATS.items():
                 _, serve_tick = asyncio.run(bench_service.idle_bytes(port, vertices, seconds))
                 _, gateway_tick = asyncio.run(
@@ -284,12 +289,12 @@ def run_takeovers(count: int) -> list[float]:
 
     times: list[float] = []
     with LocalCluster() as cluster:
-        workers, (gateway,) = cluster.start(workers=2, gateways=1)
+        workers, (gateway,) = cluster.start(workers=2, gateways=1, worker_args=NO_IDLE)
         for i in range(count):
             seconds = asyncio.run(one_takeover(gateway.port, f"t{i:02d}", workers))
             times.append(seconds)
             workers = [w for w in workers if w.process.poll() is None]
-            more, _ = cluster.start(workers=1, gateways=0)
+            more, _ = cluster.start(workers=1, gateways=0, worker_args=NO_IDLE)
             workers += more
     return times
 
@@ -330,7 +335,7 @@ def run(
         characters, viewers = load
         with LocalCluster() as cluster:
             workers, gateways = cluster.start(
-                workers=2, gateways=2, worker_args=limits, gateway_args=limits
+                workers=2, gateways=2, worker_args=[*NO_IDLE, *limits], gateway_args=limits
             )
             one = None
             extra = (float("nan"), float("nan"))
