@@ -407,25 +407,34 @@ def test_when_a_gateway_is_killed_its_clients_carry_on_at_the_other(cluster: Any
 def test_a_worker_stopped_with_sigterm_lets_its_running_block_finish_then_hands_over(
     cluster: Any,
 ) -> None:
+    from realizer.service.client import ViewClient
+
     with running_block(cluster, "dora", "running", 3.0) as (submitter, owner, other):
-        owner.process.terminate()  # SIGTERM
+        (gateway,) = [child for child in cluster.children if child.role == "gateway"]
+        with ViewClient(f"ws://127.0.0.1:{gateway.port}", character="dora") as view:
+            assert view.mesh["character"] == "dora"
+            owner.process.terminate()  # SIGTERM
 
-        def leaving() -> bool:
-            try:
-                return bool(health(owner.port)["draining"])
-            except OSError:  # already gone: it left
-                return True
+            def leaving() -> bool:
+                try:
+                    return bool(health(owner.port)["draining"])
+                except OSError:  # already gone: it left
+                    return True
 
-        wait_until(leaving, "the worker did not start leaving", pause=0.02)
-        # A block sent while the owner is leaving waits for the next owner.
-        submitter.submit(smile("queued", 0.3, "dora"))
-        messages = read_until(submitter, block_state("queued", "done", "rejected"), 20 * UNIT)
-        states = {(m["block"], m["state"]) for m in messages if m.get("type") == "block"}
-        assert ("running", "done") in states, (messages, owner.log, other.log)
-        assert ("queued", "done") in states
-        assert not [m for m in messages if m.get("kind") == "warning"]
-        assert owner.process.wait(20 * UNIT) == 0
-        assert owner_of([other], "dora") is other
+            wait_until(leaving, "the worker did not start leaving", pause=0.02)
+            # A block sent while the owner is leaving waits for the next owner.
+            submitter.submit(smile("queued", 0.3, "dora"))
+            messages = read_until(submitter, block_state("queued", "done", "rejected"), 20 * UNIT)
+            states = {(m["block"], m["state"]) for m in messages if m.get("type") == "block"}
+            assert ("running", "done") in states, (messages, owner.log, other.log)
+            assert ("queued", "done") in states
+            assert not [m for m in messages if m.get("kind") == "warning"]
+            assert owner.process.wait(20 * UNIT) == 0
+            assert owner_of([other], "dora") is other
+            # The viewer is told the character moved (regression: no mesh on a handover).
+            deadline = time.monotonic() + 10 * UNIT
+            while view.receive(timeout=10 * UNIT)["type"] != "mesh":
+                assert time.monotonic() < deadline
 
 
 @pytest.mark.slow
@@ -1100,3 +1109,39 @@ def test_workers_idle_motion_is_serves_and_carries_on_after_a_takeover(cluster: 
         assert owner_of([survivor], "ida") is survivor
         assert_idle(after, "ida", health(survivor.port)["idleEpoch"])
         assert not any(frame.get("same") for frame in before + after)
+
+
+def test_a_graceful_handover_restarts_the_viewers_as_a_takeover_does() -> None:
+    """Regression: a worker leaving on SIGTERM deletes each lease before
+    another worker creates it, and the gateway compared the new owner with
+    the owner it had just forgotten (none): its viewers got no mesh message,
+    only ``n`` and ``t`` jumping to the new owner's clock. The owner before
+    the deletion now counts, as a takeover's does; a renewal restarts
+    nothing."""
+    import asyncio
+    from types import SimpleNamespace
+
+    viewer = RestartedViewer(same=True)
+    gateway = offline_gateway({"dora": [viewer]})
+    gateway.viewers["dora"] = {viewer}
+    gateway.meshes["dora"] = b"the mesh message"
+
+    def entry(revision: int, owner: str | None) -> Any:
+        value = LeaseValue(owner, (), "host", 1.0).pack() if owner else None
+        operation = "PUT" if owner else "DEL"
+        return SimpleNamespace(
+            key=token("dora"), revision=revision, operation=operation, value=value
+        )
+
+    async def watcher(entries: list[Any]) -> Any:
+        for found in entries:
+            yield found
+
+    async def scenario(entries: list[Any]) -> None:
+        await gateway._watch_leases(watcher(entries))
+
+    asyncio.run(scenario([entry(1, "worker-a"), entry(2, "worker-a"), entry(3, "worker-a")]))
+    assert viewer.control == []  # renewals
+    asyncio.run(scenario([entry(4, None), entry(5, "worker-b")]))
+    assert viewer.control == [b"the mesh message"]
+    assert gateway._last_owner == {}

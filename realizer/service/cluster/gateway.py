@@ -190,6 +190,8 @@ class ClusterGateway(RealizerService):
         self._newest: dict[tuple[str, str], list[tuple[FrameTick, float]]] = {}
         #: per (character, format key) the last whole frame received
         self._whole: dict[tuple[str, str], LastWhole] = {}
+        #: the owner before its lease was deleted, of characters watched here
+        self._last_owner: dict[str, str] = {}
         self.frames_restamped = 0  # whole frames made here for a viewer on a same tick
         self.frames_unknown = 0  # same ticks of a content never received whole here
         #: per submitter, the last forwarding task of each character
@@ -480,6 +482,7 @@ class ClusterGateway(RealizerService):
         else:
             self.by_format.pop(character, None)
             self.viewers.pop(character, None)
+            self._last_owner.pop(character, None)
             unwatched = {c for c, _ in self._whole if c not in self.by_format}
             if len(unwatched) > STREAMS_KEPT:  # keep it bounded
                 self._whole = {k: v for k, v in self._whole.items() if k[0] in self.by_format}
@@ -641,6 +644,14 @@ class ClusterGateway(RealizerService):
                 character, entry.revision, None if deleted else entry.value, time.monotonic()
             )
             after = self.table.owner(character)
+            # A graceful handover deletes the lease before another worker
+            # creates it: the owner before the deletion counts (regression:
+            # viewers then got no mesh message, only n and t jumping).
+            before = before or self._last_owner.get(character)
+            if after is None and before is not None and character in self.viewers:
+                self._last_owner[character] = before
+            else:
+                self._last_owner.pop(character, None)
             if before is not None and after is not None and after != before:
                 self._restart_viewers(character)
 
