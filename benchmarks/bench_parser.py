@@ -81,7 +81,14 @@ def java_classpath() -> tuple[str | None, str]:
         return None, f"no built reference parser in {where} (bash scripts/build_openbml.sh)"
     if shutil.which("java") is None:
         return None, "no java on PATH"
-    classpath = listing.read_text().strip()
+    # the listing names the folder it was built in; read it against ``where``
+    # (a copied or linked .cache would otherwise run another tree's classes)
+    jars = [
+        Path(entry).name for entry in listing.read_text().strip().split(os.pathsep)[1:] if entry
+    ]
+    classpath = os.pathsep.join(
+        [str(where / "classes"), *(str(where / "lib" / jar) for jar in jars)]
+    )
     harness = ROOT / "benchmarks" / "java" / "OpenBmlBench.java"
     built = where / "classes" / "OpenBmlBench.class"
     if shutil.which("javac") and (
@@ -107,6 +114,12 @@ def java_pass(classpath: str, paths: list[Path], seconds: float) -> dict[str, ob
         check=True,
     )
     result: dict[str, object] = json.loads(done.stdout.strip().splitlines()[-1])
+    missing = {"accepted", "seconds_per_pass", "cpu_seconds_per_pass"} - result.keys()
+    if missing:
+        raise RuntimeError(
+            f"the Java harness printed no {', '.join(sorted(missing))}: an old build of it? "
+            "(bash scripts/build_openbml.sh)"
+        )
     return result
 
 
