@@ -33,6 +33,10 @@ the file over the defaults (for ``idle``, the default is on unless
 ``REALIZER_IDLE=0``). ``realizer serve --print-config`` prints the result as
 TOML, a file ``--config`` reads back, with the tokens masked.
 
+The same file may hold a ``[worker]`` table for ``realizer worker``
+(:data:`WORKER_KEYS` and ``[worker.limits]``: the settings a cluster worker
+shares with serve; docs/cluster.md); each command reads only its own table.
+
 Errors read ``path:line:col: error: message``.
 """
 
