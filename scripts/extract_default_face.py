@@ -1064,6 +1064,10 @@ LIP_SIDE_MIRROR_SHARE = 0.75
 #: How far forward (per unit down) the upper lip goes as it drops onto the
 #: lower one (positive 8, 9): over it, not into it.
 LIP_OVER_FORWARD: dict[tuple[str, str, int], float] = {("upper", "inner", 1): 0.3}
+#: The same for the upper lip's inner middle (lower_t_midlip, 4): dropping
+#: it straight down pushed it into the lower lip, whose front it then
+#: overhung as a fold (profile); 0.3 forward per unit down laps it over.
+LIP_OVER_FAPS: dict[int, float] = {4: LIP_OVER_FORWARD[("upper", "inner", 1)]}
 
 
 #: The paths that wall the upper lip off from the lower one beside the
@@ -2085,6 +2089,12 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             out = share / float(share[fp_index[anchor], 2])
             keep = np.union1d(keep, np.flatnonzero(np.abs(out).max(axis=1) > 0.0))
             deformers.append(shape_table(fap, (-1000.0, 0.0, 1000.0), [per_unit, out], keep))
+            continue
+        if fap in LIP_OVER_FAPS:
+            # dropping onto the lower lip (positive), the upper lip's middle
+            # also comes forward, over the lower lip (LIP_OVER_FAPS)
+            over = per_unit + weight[:, None] * np.array([[0.0, 0.0, LIP_OVER_FAPS[fap]]])
+            deformers.append(shape_table(fap, (-1000.0, 0.0, 1000.0), [per_unit, over], keep))
             continue
         deformers.append(shape_table(fap, (-1000.0, 1000.0), [per_unit], keep))
     # Lip corners: FaceDefMesh tables from the CC0 ARKit targets (spheres

@@ -153,6 +153,30 @@ def test_a_pushed_lip_goes_out_round_not_as_a_slab(
         assert np.linalg.norm(offsets[face.feature_vertex(still)]) < 1.5, still
 
 
+@pytest.mark.parametrize("value", [512.0, 800.0])
+def test_the_dropped_upper_lip_laps_over_the_lower_one(face: Face, value: float) -> None:
+    """lower_t_midlip (4) positive drops the upper lip's middle onto the
+    lower lip: it also comes forward (0.3 mm per mm down, as 8+/9+), so
+    its front, on the midline below the lips' contact, lies at least 2.5 mm
+    ahead of the lower lip's front (straight down it was 1.2 mm at 512, the
+    lip's edge tucked into the lower lip's front and folded there)."""
+    v = np.asarray(face.vertices, dtype=np.float64)
+    p = posed(face, {4: value})
+    skin = face.part("skin")
+    middle, lower_middle, lower_edge = (v[face.feature_vertex(n)] for n in ("2.2", "2.3", "8.2"))
+    mid = skin[np.abs(v[skin, 0]) < 0.0008]
+    lower_front = mid[
+        (v[mid, 1] <= lower_middle[1])
+        & (v[mid, 1] >= lower_edge[1])
+        & (v[mid, 2] > lower_middle[2] - 0.001)
+    ]
+    upper_front = mid[(v[mid, 1] > lower_middle[1]) & (v[mid, 2] > middle[2])]
+    dropped = upper_front[p[upper_front, 1] < lower_middle[1]]
+    assert len(dropped) >= 2
+    ahead = (p[dropped, 2].min() - v[lower_front, 2].max()) * 1000
+    assert ahead > 2.5
+
+
 def test_lowering_the_chin_leaves_the_lower_lip_round(face: Face) -> None:
     """18 at -512: the chin (2.10) goes down 512 MNS, the lower lip's outer
     contour stays (the sphere pulled 8.2 down 2.3 mm and 8.7/8.8 0.8 mm: a
