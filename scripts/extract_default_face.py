@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import gzip
 import io
 import itertools
@@ -1012,10 +1013,20 @@ LIP_BAND_FLOOR = 0.7
 LIP_CORNER_SHARE = 0.85
 
 
-#: The outer lip midpoints' FAPs (51, 52) move the middle of the lip's
-#: outline whole over this share of the way to the corners, then fade (the
-#: raised cosine's peak pulled the outline to a vertex: a dome, a pouch).
-LIP_OUTER_MIDDLE_FLAT = 0.3
+#: The outer lip midpoints' FAPs (51, 52) move the lip's outline as an arch
+#: 1 - |t|^power (t: the share of the way from the middle to the corner),
+#: which shares the outline's turn out among the vertices hm08 samples it
+#: with (seven from the middle to the corner on the upper lip, three on the
+#: lower): a parabola for the upper lip, power 3 for the lower (a wider,
+#: rounder pouch; a parabola left its middle a V). The raised cosine's peak
+#: pulled the outline to a vertex (a dome, a pouch); a flat middle (30 % of
+#: the way) then a fade put the whole turn on the vertices at the flat's
+#: ends (40 degrees at 52+: a W).
+LIP_OUTER_MIDDLE_POWER = {51: 2.0, 52: 3.0}
+#: The arch is laid on the lip's band where it is at least this (down to
+#: near the corners; at lip_field's 0.7 the harmonic fill took over half
+#: way and bent the outline back at the next vertex, 24 degrees at 52+).
+LIP_OUTER_MIDDLE_FLOOR = 0.2
 
 
 def lip_profile(x: FloatArray, centre: float, corner: float) -> FloatArray:
@@ -1124,11 +1135,14 @@ def smile_curve(shape: FloatArray, v: FloatArray, corner: float) -> FloatArray:
     return out
 
 
-def outer_middle_profile(x: FloatArray, centre: float, corner: float) -> FloatArray:
+def outer_middle_profile(
+    x: FloatArray, centre: float, corner: float, power: float = 2.0
+) -> FloatArray:
     """The profile along the mouth of 51 and 52 (lip_field's ``profile``):
-    1 out to LIP_OUTER_MIDDLE_FLAT of the way from ``centre`` to the corner,
-    then a sin^2 fade to 0 at ``corner``."""
-    out: FloatArray = 1.0 - rise(np.abs(x - centre), LIP_OUTER_MIDDLE_FLAT * corner, corner)
+    1 - |t|^``power`` (LIP_OUTER_MIDDLE_POWER), t = (x - ``centre``) /
+    ``corner``, 0 from ``corner`` on."""
+    t = np.clip(np.abs(x - centre) / corner, 0.0, 1.0)
+    out: FloatArray = 1.0 - t**power
     return out
 
 
@@ -2078,7 +2092,11 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
             continue
         weight = lip_field(
             v, skin_triangles, skin, points, float(fp[point][0]), lips[lip], other, fp[point],
-            profile=outer_middle_profile if fap in (51, 52) else lip_profile,
+            profile=(
+                functools.partial(outer_middle_profile, power=LIP_OUTER_MIDDLE_POWER[fap])
+                if fap in LIP_OUTER_MIDDLE_POWER else lip_profile
+            ),
+            floor=LIP_OUTER_MIDDLE_FLOOR if fap in LIP_OUTER_MIDDLE_POWER else LIP_BAND_FLOOR,
         )  # fmt: skip
         per_unit = weight[:, None] * np.asarray(direction)[None, :]
         keep = np.flatnonzero(weight > 0.0)
