@@ -348,6 +348,29 @@ void main() {
                     * smoothstep(0.0, 0.12, ls) * (1.0 - smoothstep(0.9, 1.0, ls));
         albedo = mix(albedo, brow_rgb * 0.6, 0.9 * liner);
     } else if (material > 2.5) {
+        // Teeth: crowns along the arch (v_extra.z: teeth from the midline),
+        // a dark gap between them, widest at the incisal edge; each crown's
+        // face and its edge rounded by tilting the normal; the thin edge
+        // greyer and the neck by the gum warmer (v_extra.w: mm above the
+        // edge, + upper row, - lower row).
+        float u = v_extra.z;
+        float up = v_extra.w >= 0.0 ? 1.0 : -1.0;
+        float h = abs(v_extra.w);
+        float f = fract(u);
+        float fu = max(fwidth(u), 1e-4);
+        float from_gap = min(f, 1.0 - f);
+        float gap_width = 0.035 + 0.09 * (1.0 - smoothstep(0.0, 2.5, h));
+        float gap = 1.0 - smoothstep(gap_width - fu, gap_width + fu, from_gap);
+        vec3 side = normalize(cross(vec3(0.0, 1.0, 0.0), n) + vec3(1e-6, 0.0, 0.0));
+        side *= v_position.x >= 0.0 ? 1.0 : -1.0;
+        float round_face = (f - 0.5) * 1.3;
+        float round_edge = 1.0 - smoothstep(0.0, 1.5, h);
+        n = normalize(n + side * round_face - vec3(0.0, up, 0.0) * 1.2 * round_edge);
+        vec3 edge_rgb = vec3(0.70, 0.74, 0.78);
+        vec3 neck_rgb = vec3(0.93, 0.86, 0.70);
+        albedo = mix(albedo, edge_rgb, 0.6 * (1.0 - smoothstep(0.3, 2.0, h)));
+        albedo = mix(albedo, neck_rgb, 0.5 * smoothstep(5.0, 9.0, h));
+        albedo *= 1.0 - 0.75 * gap;
         shine = 0.35;
         power = 50.0;
     }
@@ -446,6 +469,62 @@ def _smooth_curve(
     return curve
 
 
+#: Widths (mm) along the arch of the teeth from the midline back (central
+#: and lateral incisor, canine, two premolars, first molar), upper and lower,
+#: typical adult crowns.
+TOOTH_WIDTHS_MM = {
+    "upper": (8.5, 6.5, 7.5, 7.0, 6.5, 10.0, 9.0),
+    "lower": (5.0, 5.5, 7.0, 7.0, 7.0, 11.0, 10.0),
+}
+
+
+def tooth_coordinates(
+    face: RenderableFace, v: npt.NDArray[np.float64], extra: npt.NDArray[np.float32]
+) -> None:
+    """Write the teeth's shape coordinates into ``extra`` (columns 2, 3) in place.
+
+    The teeth meshes are slabs along the arch; the shader gives them teeth:
+    ``extra[:, 2]`` is the position along the arch in teeth (tooth k spans
+    k .. k + 1 from the midline, by :data:`TOOTH_WIDTHS_MM` measured along a
+    parabola fitted to the arch in the x-z plane), ``extra[:, 3]`` the height
+    above the incisal edge in mm, positive on the upper teeth (edge below),
+    negative on the lower (edge above). From them the fragment shader darkens
+    the gaps between teeth, rounds each crown's face and its incisal edge (by
+    tilting the normal) and tints the thin edge greyer, per pixel."""
+    for row, names in (
+        ("upper", ("upper_teeth", "teeth_upper")),
+        ("lower", ("lower_teeth", "teeth_lower")),
+    ):
+        found = [part_indices(face.parts[m]) for m in names if m in face.parts]
+        if not found or not len(found[0]):
+            continue
+        idx = found[0]
+        x, y, z = v[idx, 0], v[idx, 1], v[idx, 2]
+        if np.ptp(x) < 1e-4:
+            continue
+        a, _, _ = np.polyfit(x, z, 2)
+        grid = np.linspace(0.0, float(np.abs(x).max()), 256)
+        slope = 2 * a * grid  # the arch taken symmetric about the midline
+        step = np.sqrt(1.0 + slope**2)
+        arc = np.concatenate([[0.0], np.cumsum((step[1:] + step[:-1]) / 2 * np.diff(grid))])
+        along_mm = np.interp(np.abs(x), grid, arc) * 1000.0
+        edges = np.concatenate([[0.0], np.cumsum(TOOTH_WIDTHS_MM[row])])
+        tooth = np.interp(along_mm, edges, np.arange(len(edges)))
+        # the incisal edge: the lowest (upper row) or highest (lower row)
+        # point within 2 mm along the arch
+        bins = np.floor(along_mm / 2.0).astype(np.int64)
+        if row == "upper":
+            edge = np.full(bins.max() + 1, np.inf)
+            np.minimum.at(edge, bins, y)
+            height = (y - edge[bins]) * 1000.0
+        else:
+            edge = np.full(bins.max() + 1, -np.inf)
+            np.maximum.at(edge, bins, y)
+            height = -(edge[bins] - y) * 1000.0
+        extra[idx, 2] = tooth.astype(np.float32)
+        extra[idx, 3] = np.where(height == 0.0, 1e-3 if row == "upper" else -1e-3, height)
+
+
 def surface_attributes(
     face: RenderableFace,
 ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.float32]]:
@@ -498,6 +577,7 @@ def surface_attributes(
             depth = np.clip((z_lips - v[indices, 2]) / 0.03, 0.0, 1.0)
             extra[indices, 0] = material
             extra[indices, 1] = (brightest * (1.0 - 0.85 * depth**0.6)).astype(np.float32)
+        tooth_coordinates(face, v, extra)
     feature = getattr(face, "feature_position", None)
     skin = face_part(face, "skin")
     if feature is None or skin is None:

@@ -319,3 +319,64 @@ def test_shifting_the_jaw_carries_the_lip_corners_half_way(face: Face, value: fl
         ) / np.linalg.norm(v[near[:, 0]] - v[near[:, 1]], axis=1)
         assert stretch.max() < 0.8, corner
     assert np.linalg.norm(offsets[face.feature_vertex("2.2")]) < 0.15 * abs(chin)
+
+
+def test_the_teeth_coordinates_run_tooth_by_tooth_from_the_midline(face: Face) -> None:
+    """The shader's teeth come from per-vertex coordinates: the position
+    along the arch in teeth (the central incisor 0..1, growing with |x| on
+    both sides alike) and the height above the incisal edge (+ upper, -
+    lower, 0 at the edge)."""
+    from realizer.face.render import surface_attributes
+
+    extra = surface_attributes(face)[0]
+    v = np.asarray(face.vertices)
+    for part, sign in (("upper_teeth", 1.0), ("lower_teeth", -1.0)):
+        idx = face.part(part)
+        tooth, height = extra[idx, 2], extra[idx, 3]
+        order = np.argsort(np.abs(v[idx, 0]))
+        assert (np.diff(tooth[order]) >= -1e-4).all()
+        assert tooth.min() < 0.2 and tooth.max() > 4.0
+        assert (height * sign > 0).all()
+        assert np.abs(height).min() < 0.01 and np.abs(height).max() > 4.0
+        by_x = np.argsort(v[idx, 0])
+        mirrored = np.interp(-v[idx, 0], v[idx, 0][by_x], tooth[by_x])
+        assert np.abs(mirrored - tooth).max() < 0.2
+
+
+#: An open mouth with the upper lip raised: the upper teeth show (sheet units).
+TEETH_SHOWN = {3: 400.0, 4: -300.0, 5: -300.0}
+
+
+def test_the_front_teeth_show_gaps_between_crowns_not_a_flat_slab(face: Face) -> None:
+    """Across the upper front teeth, 2 mm above their edge, a front render
+    has a dark dip between each pair of crowns (the slab before: one flat
+    shade, no dip) and the crowns' faces vary in shade (rounded)."""
+    from realizer.face.render import FaceRenderer, Framing, RenderUnavailableError
+
+    v = posed(face, TEETH_SHOWN)
+    upper = face.part("upper_teeth")
+    try:
+        renderer = FaceRenderer(
+            face,
+            480,
+            300,
+            framing=Framing.of_points(np.asarray(face.vertices)[face.part("teeth")], margin=0.12),
+        )
+    except RenderUnavailableError as error:
+        pytest.skip(f"no OpenGL: {error}")
+    with renderer:
+        image = renderer.render(v).astype(np.float64).mean(axis=2)
+        front = upper[np.abs(v[upper, 0]) < 0.012]
+        edge = v[front, 1].min()
+        z = v[front, 2].max()
+        left, right = renderer.project(
+            np.array([[-0.012, edge + 0.002, z], [0.012, edge + 0.002, z]])
+        )
+    row = image[round(float(left[1])), int(left[0]) : int(right[0])]
+    lit = np.median(row)
+    assert lit > 90, "the front teeth are hidden or black"
+    dark = row < 0.7 * lit
+    dips = int((dark[1:] & ~dark[:-1]).sum())
+    assert dips >= 3, f"{dips} gaps across the four front teeth"
+    crowns = row[~dark]
+    assert np.ptp(crowns) > 15.0
