@@ -10,6 +10,9 @@ long video costs no memory per frame.
 
 What the shaders draw, per pixel: skin, lips and the dark mouth cavity
 (teeth, tongue and the mouth's inside darken with depth behind the lips);
+teeth with crowns on slab meshes (a gap between crowns, each crown's face
+and incisal edge rounded by the normal, the thin edge greyer), from
+coordinates along the arch and above the edge (:func:`tooth_coordinates`);
 eyeballs with a crisp iris and pupil computed from each fragment's direction
 from the eyeball's centre (so they turn with the eye and dilate with the
 pupil's vertices); eyebrows and an upper lash line from coordinates laid
