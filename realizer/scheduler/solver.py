@@ -1352,6 +1352,9 @@ def _kkt(
             return spla.splu(hessian.tocsc()).solve(-gradient).reshape(n), None
         except RuntimeError:
             return None, None
+    tied = _tied_kkt(hessian, gradient, matrix, working, b)
+    if tied is not None:
+        return tied
     # [[H, -A'], [A, 0]] assembled from coordinates in one constructor
     # (scipy's bmat makes the same matrix with a few times the overhead).
     active = matrix[working].tocoo()
@@ -1382,6 +1385,124 @@ def _kkt(
     if not np.all(np.isfinite(solution)):
         return None, None
     return solution[:n], solution[n : n + k]
+
+
+def _tied_kkt(
+    hessian: sp.csc_matrix,
+    gradient: np.ndarray,
+    matrix: sp.csr_matrix,
+    working: list[int],
+    b: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_kkt` with the working rows held as ties: one band Cholesky, no KKT LU.
+
+    Every working row is ``x_i - x_j = b`` (one side may be the zero node);
+    when they form a forest, each tree is one unknown (its root's; a tree
+    holding the zero node is constant): ``x = Z y + c``. The reduced
+    Hessian ``Z'HZ`` is the Hessian's entries relabelled by tree, definite
+    where the KKT system is regular, and is solved as :func:`_kkt` solves
+    the Hessian alone. The multipliers solve ``A'lam = Hx + g``, one row per
+    tree edge, found by peeling each tree from its leaves. None (the caller
+    solves the KKT system) when a row is not such a difference, the rows
+    close a cycle, or the reduced system is singular.
+    """
+    scipy = _scipy()
+    n = hessian.shape[0]
+    k = len(working)
+    active = matrix[working]
+    counts = np.diff(active.indptr)
+    data = active.data
+    if counts.min() < 1 or counts.max() > 2 or not np.all(np.abs(data) == 1.0):
+        return None
+    row_of = np.repeat(np.arange(k), counts)
+    plus = data > 0
+    if np.bincount(row_of[plus], minlength=k).max(initial=0) > 1 or (
+        np.bincount(row_of[~plus], minlength=k).max(initial=0) > 1
+    ):
+        return None
+    zero = n
+    upper = np.full(k, zero, dtype=np.int64)
+    lower = np.full(k, zero, dtype=np.int64)
+    upper[row_of[plus]] = active.indices[plus]
+    lower[row_of[~plus]] = active.indices[~plus]
+    ups: list[int] = upper.tolist()
+    lows: list[int] = lower.tolist()
+    bounds: list[float] = b[working].tolist()
+    adjacent: dict[int, list[int]] = {}
+    for t in range(k):
+        adjacent.setdefault(ups[t], []).append(t)
+        adjacent.setdefault(lows[t], []).append(t)
+    # Breadth-first trees, the zero node's first: each node's root, its
+    # offset to the root, and the edge to its parent.
+    root: dict[int, int] = {}
+    offset: dict[int, float] = {}
+    visits: list[tuple[int, int, int]] = []  # (node, edge to the parent, parent)
+    used = [False] * k
+    starts = ([zero] if zero in adjacent else []) + list(adjacent)
+    for start in starts:
+        if start in root:
+            continue
+        root[start] = start
+        offset[start] = 0.0
+        queue = [start]
+        for node in queue:
+            for t in adjacent[node]:
+                if used[t]:
+                    continue
+                used[t] = True
+                other = lows[t] if ups[t] == node else ups[t]
+                if other in root:
+                    return None  # a cycle: dependent rows
+                root[other] = start
+                offset[other] = offset[node] + (bounds[t] if ups[t] == other else -bounds[t])
+                visits.append((other, t, node))
+                queue.append(other)
+    # x = Z y + c: the representative of each variable (zero: constant).
+    representative = np.arange(n + 1, dtype=np.int64)
+    constant = np.zeros(n + 1)
+    if visits:
+        tied_nodes = np.fromiter(root.keys(), dtype=np.int64, count=len(root))
+        representative[tied_nodes] = np.fromiter(root.values(), dtype=np.int64, count=len(root))
+        constant[tied_nodes] = np.fromiter(offset.values(), dtype=float, count=len(offset))
+    own = representative[:n] == np.arange(n)
+    column = np.full(n + 1, -1, dtype=np.int64)
+    column[np.flatnonzero(own)] = np.arange(int(own.sum()))
+    z = column[representative[:n]]  # -1: in the zero node's tree
+    c = constant[:n]
+    size = int(own.sum())
+    square = hessian.tocoo()
+    zr, zc = z[square.row], z[square.col]
+    keep = (zr >= 0) & (zc >= 0)
+    reduced = scipy.sparse.csc_matrix((square.data[keep], (zr[keep], zc[keep])), shape=(size, size))
+    shifted = hessian @ c + gradient
+    free = z >= 0
+    reduced_gradient = np.bincount(z[free], weights=shifted[free], minlength=size)
+    if size:
+        y = _band_solve(reduced, -reduced_gradient, definite=True)
+        if y is None:
+            try:
+                y = scipy.sparse.linalg.splu(reduced).solve(-reduced_gradient).reshape(size)
+            except RuntimeError:
+                return None
+    else:
+        y = np.zeros(0)
+    x = np.where(free, y[np.where(free, z, 0)] if size else 0.0, 0.0) + c
+    if not np.all(np.isfinite(x)):
+        return None
+    # A'lam = Hx + g, peeled from the leaves: a node's edge to its parent
+    # carries what its own residual and its children's edges leave.
+    residual = hessian @ x + gradient
+    rest = dict.fromkeys(root, 0.0)
+    touched = np.fromiter((v for v in root if v != zero), dtype=np.int64)
+    for v, r in zip(touched.tolist(), residual[touched].tolist(), strict=True):
+        rest[v] = r
+    multipliers = [0.0] * k
+    for node, t, parent in reversed(visits):
+        # the row's coefficient at node: +1 as its upper end, -1 as its lower
+        value = rest[node] if ups[t] == node else -rest[node]
+        multipliers[t] = value
+        rest[parent] -= value if ups[t] == parent else -value
+    return x, np.array(multipliers)
 
 
 #: A system whose bandwidth after the reverse Cuthill-McKee ordering is at

@@ -260,3 +260,72 @@ def test_the_sparse_path_gives_the_same_times_with_and_without_band_solves(
     assert isinstance(banded, dict)
     for key, time in plain.items():
         assert banded[key] == pytest.approx(time, abs=1e-6), key
+
+
+# -- the working rows held as ties (one band Cholesky instead of a KKT LU) ---------------
+
+
+def test_tied_kkt_equals_the_kkt_lu_and_declines_cycles_and_other_rows(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    sp = pytest.importorskip("scipy.sparse")
+    np = pytest.importorskip("numpy")
+    chance = np.random.default_rng(11)
+    size = 40
+    order = chance.permutation(size)
+    weight = chance.uniform(0.1, 3.0, size - 1)
+    rows = np.concatenate([order[:-1], order[1:], order[:-1], order[1:], order])
+    cols = np.concatenate([order[1:], order[:-1], order[:-1], order[1:], order])
+    data = np.concatenate([-weight, -weight, weight, weight, np.full(size, 1e-3)])
+    hessian = sp.csc_matrix((data, (rows, cols)), shape=(size, size))
+    gradient = chance.normal(size=size)
+    # x3 - x9 >= 0.5, x20 >= 1 (the zero node), x9 - x30 >= -0.2, x3 - x30 >= 0 (a cycle
+    # with the first and third), and a row that is no difference (2 x5 >= 0).
+    matrix = sp.csr_matrix(
+        ([1.0, -1.0, 1.0, 1.0, -1.0, 1.0, -1.0, 2.0],
+         ([0, 0, 1, 2, 2, 3, 3, 4], [3, 9, 20, 9, 30, 3, 30, 5])),
+        shape=(5, size),
+    )  # fmt: skip
+    b = np.array([0.5, 1.0, -0.2, 0.0, 0.0])
+    working = [0, 1, 2]
+    tied = solver._tied_kkt(hessian, gradient, matrix, working, b)
+    assert tied is not None
+    monkeypatch.setattr(solver, "_tied_kkt", lambda *args: None)  # the KKT LU
+    x, lam = solver._kkt(hessian, gradient, matrix, working, b)
+    assert x is not None and lam is not None
+    np.testing.assert_allclose(tied[0], x, atol=1e-9)
+    np.testing.assert_allclose(tied[1], lam, atol=1e-9)
+    np.testing.assert_allclose(matrix[working] @ tied[0], b[working], atol=1e-12)
+    monkeypatch.undo()
+    assert solver._tied_kkt(hessian, gradient, matrix, [0, 2, 3], b) is None  # dependent
+    assert solver._tied_kkt(hessian, gradient, matrix, [0, 4], b) is None  # 2 x5
+    # Both declined systems still get the KKT LU's answer through _kkt.
+    x, _ = solver._kkt(hessian, gradient, matrix, [0, 4], b)
+    assert x is not None and x[5] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_sparse_path_gives_the_same_times_with_and_without_tied_kkt(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    tied = solver._tied_kkt
+    taken = 0
+
+    def counting(*args: object) -> object:
+        nonlocal taken
+        result = tied(*args)  # type: ignore[arg-type]
+        taken += result is not None
+        return result
+
+    for seed in range(400):
+        problem = random_problem(seed)
+        monkeypatch.setattr(solver, "_tied_kkt", counting)
+        with_ties = outcome(solver.solve_sparse, problem)
+        monkeypatch.setattr(solver, "_tied_kkt", lambda *args: None)
+        plain = outcome(solver.solve_sparse, problem)
+        if isinstance(plain, frozenset):
+            assert with_ties == plain, seed  # the same conflict named
+            continue
+        assert isinstance(with_ties, dict)
+        for key, time in plain.items():
+            assert with_ties[key] == pytest.approx(time, abs=1e-6), (seed, key)
+    assert taken > 40  # the tied solve ran, not only its fallback
