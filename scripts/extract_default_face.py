@@ -1058,7 +1058,10 @@ def lip_profile(x: FloatArray, centre: float, corner: float) -> FloatArray:
 #: upper lip dropping (8+, 9+, 55+, 56+) fades as cos² to the corner itself
 #: (as a quarter cosine it turned back to the corner in one vertex); the
 #: lower lip dropping (10-, 11-, 57-, 58-) as a rounder (1 - t²)^0.7, the
-#: opening's end a U beside the corner (a quarter cosine: a straight edge) ...
+#: opening's end a U beside the corner (a quarter cosine: a straight edge),
+#: on the outer contour (57-, 58-) as (1 - t²) to the corner itself (to 0.95
+#: of the way the corner's neighbour stayed while the next vertex, 0.7 mm
+#: on, dropped 1.3 mm: a narrow near-vertical facet at the corner) ...
 LIP_SIDE_FAPS = frozenset({8, 9, 10, 11, 55, 56, 57, 58})
 LIP_SIDE_CORNER = {
     ("upper", "inner", -1): (0.95, 1.0),
@@ -1067,7 +1070,7 @@ LIP_SIDE_CORNER = {
     ("lower", "inner", 1): (0.95, 1.0),
     ("upper", "outer", -1): (0.92, 1.0),
     ("upper", "outer", 1): (1.0, 2.0),
-    ("lower", "outer", -1): (0.95, -0.7),
+    ("lower", "outer", -1): (1.0, -1.0),
     ("lower", "outer", 1): (0.85, 1.5),
 }
 #: ... and on the middle's side 0 this share of that distance past the midline.
@@ -1194,6 +1197,7 @@ def lip_field(
     floor: float = LIP_BAND_FLOOR,
     profile: Callable[[FloatArray, float, float], FloatArray] = lip_profile,
     inside: IntArray | None = None,
+    pinned: tuple[IntArray, FloatArray] | None = None,
 ) -> FloatArray:
     """The weight (0..1 per vertex) with which a lip midpoint FAP moves the
     skin: ``profile`` (lip_profile) on the vertices of ``lip`` within
@@ -1202,7 +1206,8 @@ def lip_field(
     ``inside``, the mouth's pocket, which then follow harmonically) and
     on skin farther than LIP_REACH_M from ``anchor``, harmonic on the rest
     of the skin (so it varies smoothly over the lips, into the mouth and
-    towards nose and chin)."""
+    towards nose and chin). ``pinned`` (vertices, values) overrides the
+    band's and the other lip's values on those vertices."""
     points = np.asarray(contour)
     p = v[lip]
     dist = np.full(len(lip), np.inf)
@@ -1217,13 +1222,46 @@ def lip_field(
     far = skin[np.linalg.norm(v[skin] - anchor, axis=1) > LIP_REACH_M]
     still = other_lip if inside is None else np.setdiff1d(other_lip, inside)
     zero = np.setdiff1d(np.union1d(far, still), band)
-    fixed = np.concatenate([band, zero])
     values = np.concatenate([profile(v[band, 0], centre, corner), np.zeros(len(zero))])
-    free = np.setdiff1d(skin, fixed)
-    out = harmonic_fill(v, triangles, fixed, values, free)
+    fixed = np.concatenate([band, zero])
     # The feature point moves one FAPU per unit.
     nearest = int(np.argmin(np.linalg.norm(v[lip] - anchor, axis=1)))
+    if pinned is not None:
+        # pinned values are per FAPU: scale them as the band's feature point
+        at = np.flatnonzero(fixed == lip[nearest])
+        scale = float(values[at[0]]) if len(at) else 1.0
+        keep = ~np.isin(fixed, pinned[0])
+        fixed = np.concatenate([fixed[keep], pinned[0]])
+        values = np.concatenate([values[keep], scale * pinned[1]])
+    free = np.setdiff1d(skin, fixed)
+    out = harmonic_fill(v, triangles, fixed, values, free)
     return out / out[lip[nearest]]
+
+
+#: The lip side tables whose other contour (the inner one) is pinned over
+#: this distance (metres) before its corner to a sin² ramp (lip_side_table).
+LIP_SIDE_INNER_RAMP_M = {("lower", "outer", -1): 0.007}
+
+
+def corner_ramp(
+    v: FloatArray, field: FloatArray, path: IntArray, reach: float
+) -> tuple[IntArray, FloatArray]:
+    """The vertices of ``path`` (a contour, corner to corner) within
+    ``reach`` of either corner (along x) and their values: ``field`` where
+    the contour is ``reach`` from the corner times sin²(π/2 d / reach), d
+    the vertex's distance from the corner, so the contour leaves the corner
+    level and rounds into the rest."""
+    ids, values = [], []
+    for end in (path[0], path[-1]):
+        side = 1.0 if v[end, 0] >= 0 else -1.0
+        on = path[side * v[path, 0] > 0]
+        d = abs(float(v[end, 0])) - side * v[on, 0]
+        order = np.argsort(d)
+        at_reach = float(np.interp(reach, d[order], field[on[order]]))
+        near = (d > 0) & (d < reach)
+        ids.append(on[near])
+        values.append(at_reach * np.sin(0.5 * np.pi * d[near] / reach) ** 2)
+    return np.concatenate(ids), np.concatenate(values)
 
 
 def mesh_path(v: FloatArray, triangles: IntArray, through: list[int]) -> IntArray:
@@ -1295,12 +1333,17 @@ def lip_side_table(
     direction: tuple[float, float, float],
     lips: tuple[IntArray, IntArray, IntArray],
     which: tuple[str, str],
+    inner: IntArray | None = None,
 ) -> Any:
     """The FaceDefMesh of a lip FAP between middle and corner (LIP_SIDE_FAPS):
     a lip_field of lip_side_profile per sign (LIP_SIDE_CORNER), the
     mouth's pocket on the other lip (``lips``: this lip, the other, the
     pocket) following harmonically: held still, its triangles next to the
-    moving lip's inner contour folded over at 430 (10+) and 380 (55+)."""
+    moving lip's inner contour folded over at 430 (10+) and 380 (55+).
+    Where LIP_SIDE_INNER_RAMP_M names the table, the lip's ``inner``
+    contour (corner to corner) is then pinned to corner_ramp: 57- and 58-
+    had the band's share on it up to 0.7 mm from the inner corner, which
+    the upper lip holds (3.5 mm down there at 512: a near-vertical facet)."""
     lip, other, inside = lips
     fields = []
     for sign in (-1, 1):
@@ -1311,12 +1354,17 @@ def lip_side_table(
         ) -> FloatArray:
             return lip_side_profile(x, centre, corner, share, power)
 
-        fields.append(
-            lip_field(
-                v, triangles, skin, contour, float(anchor[0]), lip, other, anchor, 0.0, profile,
-                inside,
-            )
+        field = lip_field(
+            v, triangles, skin, contour, float(anchor[0]), lip, other, anchor, 0.0, profile,
+            inside,
         )  # fmt: skip
+        reach = LIP_SIDE_INNER_RAMP_M.get((*which, sign))
+        if reach is not None and inner is not None:
+            field = lip_field(
+                v, triangles, skin, contour, float(anchor[0]), lip, other, anchor, 0.0, profile,
+                inside, corner_ramp(v, field, inner, reach),
+            )  # fmt: skip
+        fields.append(field)
     axis = np.asarray(direction)[None, :]
     over = axis + np.array([[0.0, 0.0, LIP_OVER_FORWARD.get((*which, 1), 0.0)]])
     keep = np.flatnonzero((fields[0] > 0.0) | (fields[1] > 0.0))
@@ -2087,6 +2135,9 @@ def build_rig(head: HeadMesh, targets: dict[str, Target], base: BaseMesh) -> Rig
                 lip_side_table(
                     fap, v, skin_triangles, skin, points, fp[point], direction,
                     (own, still, parts["mouth_inside"]), (lip, contour),
+                    mesh_path(
+                        v, skin_triangles, [fp_index[p] for p in contour_points[(lip, "inner")]]
+                    ),
                 )
             )  # fmt: skip
             continue

@@ -200,3 +200,35 @@ def test_a_dropped_upper_lip_turns_smoothly_into_its_corner(
     loop = contours[SIDE_FAPS[fap]]
     added = np.abs(added_turning(face, loop, posed(face, {fap: 512})))
     assert added.max() < MAX_ADDED_TURN, f"{added.max():.1f} degrees"
+
+
+#: The most a lower lip contour vertex within 3 mm of its corner may turn as
+#: the lower lip drops beside the middle (57-, 58- at 512), degrees.
+MAX_CORNER_TURN = {"lower outer": 10.0, "lower inner": 20.0}
+
+
+@pytest.mark.parametrize("fap", [57, 58])
+@pytest.mark.parametrize("name", sorted(MAX_CORNER_TURN))
+def test_the_dropped_lower_lip_leaves_its_corners_without_a_facet(
+    face: Face, contours: dict[str, np.ndarray], fap: int, name: str
+) -> None:
+    """Dropping the lower lip beside the middle (57-, 58- at 512), the
+    vertices of its outer and inner contours within 3 mm of their corners
+    (the corner's neighbour on) turn by less than MAX_CORNER_TURN: the
+    outer contour's drop fades to the corner itself (LIP_SIDE_CORNER), the
+    inner one's is pinned to a sin² ramp from its corner
+    (LIP_SIDE_INNER_RAMP_M). Before, the outer corner's neighbour stayed
+    while the next vertex, 0.7 mm on, dropped 1.3 mm (it turned 28
+    degrees), and the inner corner's neighbour, 0.7 mm from it, dropped
+    3.5 mm (88 degrees): a narrow near-vertical facet at the corner."""
+    v0 = np.asarray(face.vertices, dtype=np.float64)
+    loop = contours[name]
+    side = np.sign(v0[face.feature_vertex(SIDE_POINTS[fap]), 0])
+    if side * v0[loop[0], 0] < side * v0[loop[-1], 0]:
+        loop = loop[::-1]
+    corner_x = abs(float(v0[loop[0], 0]))
+    added = np.abs(added_turning(face, loop, posed(face, {fap: -512})))
+    # added[k] is the turning at loop[k + 1]
+    near = side * v0[loop[1:-1], 0] > corner_x - 0.003
+    assert near.sum() >= 2
+    assert added[near].max() < MAX_CORNER_TURN[name], f"{added[near].max():.1f} degrees"
