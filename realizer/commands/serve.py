@@ -217,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
     require("serve", "realizer serve")  # scipy: the scheduler and the face's deformation
     logs.configure(settings.log_level, "json" if settings.log_format == "json" else "text")
 
-    from realizer.service.assets import face_assets, load_face, session_factory
+    from realizer.service.assets import face_assets, load_face, sessions_from_settings
     from realizer.service.server import RealizerService, ServiceConfig, serve_until_stopped
     from realizer.service.stage import Stage
 
@@ -233,12 +233,7 @@ def run(args: argparse.Namespace) -> int:
             planner_processes=settings.planner_processes,
         )
         face = load_face(settings.face)
-        speech = {
-            "tts": settings.tts,
-            "voice": settings.voice or "",
-            "model": settings.piper_model or "",
-        }
-        make_session = session_factory(face, idle=settings.idle, seed=settings.seed, speech=speech)
+        make_session = sessions_from_settings(face, settings)
         # The first session loads the engines' data (tens of ms): do it now,
         # not on the clock's time when the first character appears.
         make_session(settings.character)

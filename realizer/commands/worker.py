@@ -141,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
         import secrets
         from dataclasses import replace
 
-        from realizer.service.assets import face_assets, load_face, session_factory
+        from realizer.service.assets import face_assets, load_face, sessions_from_settings
         from realizer.service.cluster.worker import ClusterWorker
         from realizer.service.limits import DEFAULT_LIMITS
         from realizer.service.server import ServiceConfig
@@ -160,14 +160,9 @@ def run(args: argparse.Namespace) -> int:
         )
         cluster = cluster_config(args, drain_timeout=args.drain)
         face = load_face(settings.face)
-        speech = {
-            "tts": settings.tts,
-            "voice": settings.voice or "",
-            "model": settings.piper_model or "",
-        }
         # The same sessions as realizer serve's: idle motion seeded by the
         # seed and the character's id (realizer.service.assets).
-        make_session = session_factory(face, idle=settings.idle, seed=settings.seed, speech=speech)
+        make_session = sessions_from_settings(face, settings)
         make_session(settings.character)  # load the engines' data now, not on the clock
         stage = Stage(make_session, limits, default_character=settings.character)
         worker = ClusterWorker(config, stage, face_assets(face), cluster)

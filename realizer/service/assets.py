@@ -60,6 +60,18 @@ class Sessions:
         return self._make(character_id)
 
 
+def sessions_from_settings(face: Any, settings: Any) -> Sessions:
+    """:func:`session_factory` from a command's settings (``realizer serve``'s
+    and ``realizer worker``'s: ``idle``, ``seed``, ``tts``, ``voice`` and
+    ``piper_model``), so that both run the same sessions."""
+    speech = {
+        "tts": settings.tts,
+        "voice": settings.voice or "",
+        "model": settings.piper_model or "",
+    }
+    return session_factory(face, idle=settings.idle, seed=settings.seed, speech=speech)
+
+
 def session_factory(
     face: Any, *, idle: bool = False, seed: int = 0, speech: dict[str, str] | None = None
 ) -> Sessions:

@@ -51,8 +51,7 @@ def face() -> Face:
     return load_default_face()
 
 
-@pytest.fixture(scope="module")
-def contours(face: Face) -> dict[str, np.ndarray]:
+def lip_contours(face: Face) -> dict[str, np.ndarray]:
     """Each contour's vertices: the shortest mesh paths between its points."""
     v = np.asarray(face.vertices, dtype=np.float64)
     f = np.asarray(face.faces)
@@ -72,6 +71,11 @@ def contours(face: Face) -> dict[str, np.ndarray]:
             loop += path[::-1][1:]
         out[name] = np.asarray(loop)
     return out
+
+
+@pytest.fixture(scope="module")
+def contours(face: Face) -> dict[str, np.ndarray]:
+    return lip_contours(face)
 
 
 def posed(face: Face, values: dict[int, float]) -> np.ndarray:

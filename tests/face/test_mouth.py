@@ -9,15 +9,13 @@ the lower lip's outline to a point; nostril wings that flare as a lobe.
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pytest
 
 from realizer.face.default import load_default_face
 from realizer.face.deform import deform
 from realizer.face.model import Face
-from tests.face.test_lips import CONTOURS, CORNER_SHARE, added_turning
+from tests.face.test_lips import CORNER_SHARE, added_turning, lip_contours
 
 #: the sheet's jaw opening for the tongue's rows (fap_sheet.csv)
 JAW = {3: 900.0}
@@ -33,30 +31,6 @@ def posed(face: Face, values: dict[int, float]) -> np.ndarray:
     for fap, value in values.items():
         vector[fap - 1] = value
     return np.asarray(deform(face, vector), dtype=np.float64)
-
-
-def contour_loops(face: Face) -> dict[str, np.ndarray]:
-    """test_lips' lip contours: the shortest mesh paths between their points."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import dijkstra
-
-    v = np.asarray(face.vertices, dtype=np.float64)
-    f = np.asarray(face.faces)
-    i, j = f.ravel(), np.roll(f, -1, axis=1).ravel()
-    w = np.linalg.norm(v[i] - v[j], axis=1)
-    graph = coo_matrix((np.r_[w, w], (np.r_[i, j], np.r_[j, i])), shape=(len(v), len(v))).tocsr()
-    out = {}
-    for name, points in CONTOURS.items():
-        ids = [face.feature_vertex(point) for point in points]
-        loop = [ids[0]]
-        for a, b in itertools.pairwise(ids):
-            _, pred = dijkstra(graph, indices=a, return_predecessors=True)
-            path = [b]
-            while path[-1] != a:
-                path.append(int(pred[path[-1]]))
-            loop += path[::-1][1:]
-        out[name] = np.asarray(loop)
-    return out
 
 
 def tongue_triangles(face: Face) -> np.ndarray:
@@ -274,7 +248,7 @@ def test_the_outer_lip_middle_bends_its_outline_as_an_arch(
     turn shared out among hm08's few contour vertices, as test_lips pins
     for the inner line)."""
     v = np.asarray(face.vertices, dtype=np.float64)
-    loop = contour_loops(face)[contour]
+    loop = lip_contours(face)[contour]
     p = posed(face, {fap: sign * 512.0})
     motion = (p - v)[face.feature_vertex(point), 1]
     assert abs(motion) == pytest.approx(512 * face.fapu.mns, rel=0.02)
